@@ -1,0 +1,46 @@
+// Small file helpers for the CLI: every output is written to a temporary file beside the
+// target and renamed into place, so nothing half-written is ever left behind.
+#pragma once
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <string_view>
+#include <unistd.h>
+
+#include "bb/result.h"
+
+namespace bb::cli {
+
+inline Status write_atomic(const std::string& path, std::string_view bytes) {
+  namespace fs = std::filesystem;
+  fs::path target(path);
+  std::error_code ec;
+  if (target.has_parent_path()) fs::create_directories(target.parent_path(), ec);
+  if (ec) return Error{path, "", "cannot create directory: " + ec.message()};
+  fs::path tmp = target;
+  tmp += ".tmp" + std::to_string(::getpid());
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) return Error{path, "", "cannot open for writing"};
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    out.flush();
+    if (!out) {
+      out.close();
+      fs::remove(tmp, ec);
+      return Error{path, "", "write failed (disk full?)"};
+    }
+  }
+  fs::rename(tmp, target, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    return Error{path, "", "cannot move the finished file into place: " + ec.message()};
+  }
+  return Ok{};
+}
+
+// Encodes RGBA8 pixels (rows top to bottom) as PNG and writes them atomically.
+Status write_png(const std::string& path, int width, int height, const unsigned char* rgba);
+
+}  // namespace bb::cli

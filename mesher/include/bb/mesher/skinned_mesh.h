@@ -1,0 +1,43 @@
+// The mesher's product and the exporter's input: one skinned triangle mesh per level of
+// detail, with the error it reached (a lossy step reports its error).
+//
+// Units: metres, in the bind posture (Body::sample_posture) of the body's skeleton. Joint
+// indices are skeleton joint indices. Triangles are counter-clockwise seen from outside.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+#include <glm/gtc/type_precision.hpp>
+
+namespace bb::mesher {
+
+struct SkinnedMesh {
+  std::vector<glm::vec3> positions;   // metres
+  std::vector<glm::vec3> normals;     // unit, outward
+  std::vector<glm::vec2> uvs;         // empty, or one per vertex (textured proxies)
+  std::vector<glm::u16vec4> joints;   // up to 4 influences; unused slots hold 0
+  std::vector<glm::vec4> weights;     // sum to 1; unused slots hold 0
+  std::vector<uint32_t> indices;      // 3 per triangle
+  size_t triangle_count() const { return indices.size() / 3; }
+};
+
+// What a LOD reached, measured against the implicit surface (metres and fractions of height).
+struct LodReport {
+  int level = 0;
+  size_t triangles = 0, vertices = 0;
+  double hausdorff_m = 0, mean_m = 0;        // symmetric Hausdorff and mean distance to the skin
+  double hausdorff_rel = 0, mean_rel = 0;    // the same over body height
+  bool closed = false, manifold = false, oriented = false, self_intersections = true;
+  double seconds = 0;                        // time to build this LOD
+};
+
+struct Lod {
+  SkinnedMesh mesh;
+  LodReport report;
+  float screen_coverage = 0;  // MSFT_screencoverage: switch to the next LOD below this fraction
+};
+
+}  // namespace bb::mesher

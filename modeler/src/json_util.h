@@ -1,0 +1,92 @@
+// Internal: reading JSON with errors that carry the JSON path. Parse functions throw
+// JsonError inside the modeler; the public entry points catch it and return bb::Error.
+#pragma once
+
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <string_view>
+
+#include <glm/glm.hpp>
+#include <nlohmann/json.hpp>
+
+#include "bb/result.h"
+
+namespace bb::modeler::detail {
+
+using nlohmann::json;
+
+struct JsonError {
+  std::string where;
+  std::string reason;
+};
+
+[[noreturn]] inline void fail(const std::string& where, const std::string& reason) {
+  throw JsonError{where, reason};
+}
+
+inline std::string at(const std::string& path, const std::string& key) { return path + "." + key; }
+inline std::string at(const std::string& path, size_t i) {
+  return path + "[" + std::to_string(i) + "]";
+}
+
+inline const char* type_name(const json& j) { return j.type_name(); }
+
+inline const json& member(const json& obj, const std::string& path, const char* key) {
+  if (!obj.is_object()) fail(path, std::string("expected an object, got ") + type_name(obj));
+  auto it = obj.find(key);
+  if (it == obj.end()) fail(path, std::string("missing required key \"") + key + "\"");
+  return *it;
+}
+
+inline double number(const json& j, const std::string& path) {
+  if (!j.is_number()) fail(path, std::string("expected a number, got ") + type_name(j));
+  double v = j.get<double>();
+  if (!std::isfinite(v)) fail(path, "expected a finite number");
+  return v;
+}
+
+inline std::string string(const json& j, const std::string& path) {
+  if (!j.is_string()) fail(path, std::string("expected a string, got ") + type_name(j));
+  return j.get<std::string>();
+}
+
+inline glm::vec3 vec3(const json& j, const std::string& path) {
+  if (!j.is_array() || j.size() != 3)
+    fail(path, std::string("expected an array of 3 numbers, got ") +
+                   (j.is_array() ? std::to_string(j.size()) + " elements" : type_name(j)));
+  return glm::vec3(number(j[0], at(path, 0)), number(j[1], at(path, 1)), number(j[2], at(path, 2)));
+}
+
+inline const json& array(const json& j, const std::string& path) {
+  if (!j.is_array()) fail(path, std::string("expected an array, got ") + type_name(j));
+  return j;
+}
+
+// Parses text, turning syntax errors into "line L, column C" places.
+inline json parse_text(std::string_view text) {
+  try {
+    return json::parse(text.begin(), text.end());
+  } catch (const json::parse_error& e) {
+    // Translate the byte offset into line and column.
+    size_t line = 1, col = 1;
+    for (size_t i = 0; i + 1 < e.byte && i < text.size(); ++i) {
+      if (text[i] == '\n') { ++line; col = 1; } else { ++col; }
+    }
+    std::string what = e.what();
+    auto p = what.find("syntax error");
+    fail("line " + std::to_string(line) + ", column " + std::to_string(col),
+         "invalid JSON: " + (p == std::string::npos ? what : what.substr(p)));
+  }
+}
+
+inline Result<std::string> read_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Error{path, "", "cannot open file (does it exist?)"};
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) return Error{path, "", "read error"};
+  return ss.str();
+}
+
+}  // namespace bb::modeler::detail

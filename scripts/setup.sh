@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# Installs what bodybuilder needs on Debian 12: compilers, libraries (Debian packages only) and the
+# Khronos glTF validator (npm, into tools/node_modules). Safe to run again; it skips what is there.
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+SUDO=""
+if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
+
+PKGS=(
+  build-essential cmake ninja-build ccache pkg-config git
+  libopenmesh-dev libcgal-dev libgmp-dev libmpfr-dev
+  libtinygltf-dev libglm-dev nlohmann-json3-dev libstb-dev libcli11-dev
+  libopenvdb-dev libboost-iostreams-dev libimath-dev libtbb-dev libblosc-dev zlib1g-dev
+  libmeshoptimizer-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  libegl-dev libgl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri
+)
+# Node.js and npm only when the machine has none (some images ship NodeSource's node with its own npm).
+command -v npm >/dev/null 2>&1 || PKGS+=(nodejs npm)
+
+missing=()
+for p in "${PKGS[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing ${missing[*]}" >&2
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+# The Khronos glTF validator, used by the tests on every glTF we write.
+if [ ! -x "$here/tools/node_modules/.bin/gltf_validator" ] && [ ! -f "$here/tools/node_modules/gltf-validator/package.json" ]; then
+  echo "setup: installing gltf-validator (npm)" >&2
+  (cd "$here/tools" && npm install --no-audit --no-fund --silent >/dev/null)
+fi
+echo "setup: ok" >&2
