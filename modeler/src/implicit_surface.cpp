@@ -175,15 +175,16 @@ std::optional<float> ImplicitSurface::outermost_intersection(const glm::vec3& or
     return f;
   };
   // March from the far end of the supports towards the origin; the first inside point found
-  // brackets the outermost crossing.
-  float t_out = t_hi, t = t_hi, h = 0.0f;
-  eval(t, &h);
+  // after an outside one brackets the outermost crossing (the ray may end inside the skin).
+  float t_out = t_hi, h = 0.0f;
+  bool outside = eval(t_hi, &h) < kIso;
   bool found = false;
-  while (true) {
+  float t = t_hi;
+  while (t > 0.0f) {
     t = std::max(0.0f, t_out - std::max(h, 1e-4f));
-    float f = eval(t, &h);
-    if (f >= kIso) { found = true; break; }
-    if (t == 0.0f) break;
+    bool inside = eval(t, &h) >= kIso;
+    if (inside && outside) { found = true; break; }
+    outside = !inside;
     t_out = t;
   }
   if (!found) return std::nullopt;
