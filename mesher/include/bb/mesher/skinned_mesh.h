@@ -14,6 +14,17 @@
 
 namespace bb::mesher {
 
+// Which piece of the body a vertex belongs to (SkinnedMesh::part). Extremities are the
+// full-resolution OpenVDB meshes that decimation may simplify; kBody is contour-sampled.
+enum class MeshPart : uint8_t {
+  kBody = 0,
+  kHead = 1,
+  kLeftHand = 2,
+  kRightHand = 3,
+  kLeftFoot = 4,
+  kRightFoot = 5,
+};
+
 struct SkinnedMesh {
   std::vector<glm::vec3> positions;   // metres
   std::vector<glm::vec3> normals;     // unit, outward
@@ -21,6 +32,13 @@ struct SkinnedMesh {
   std::vector<glm::u16vec4> joints;   // up to 4 influences; unused slots hold 0
   std::vector<glm::vec4> weights;     // sum to 1; unused slots hold 0
   std::vector<uint32_t> indices;      // 3 per triangle
+  // Optional tags, empty or one per vertex. part: a MeshPart value. seam: 1 on a seam loop where
+  // an extremity is zipped to the limb contours (both the extremity's border loop and the
+  // contour ring it is joined to); decimation must keep these vertices and the edges between
+  // them so that the seam stays crack-free. A triangle is an extremity triangle when all three
+  // vertices have the same extremity part (zipper triangles mix kBody and the extremity).
+  std::vector<uint8_t> part;
+  std::vector<uint8_t> seam;
   size_t triangle_count() const { return indices.size() / 3; }
 };
 

@@ -1,0 +1,86 @@
+// Section 3.1 of the paper: multi-resolution modelling by sampling one implicit surface at
+// several densities. Contours circle each limb link; rays are cast star-shaped from origins on
+// the link; the outermost crossing with the skin is a sample. Head, hands and feet, which are
+// not star-shaped around one link, come from OpenVDB (narrow-band level set of the same field,
+// then volumeToMesh) and are zipped to the limb contours at the neck, wrist and ankle seams.
+//
+// Lifecycle:
+//   const bb::modeler::Body& body = bb::modeler::default_body();
+//   auto lods = bb::mesher::build_lods(body);          // LOD 0 first, falling triangle counts
+//   if (!lods) { report(lods.error().message()); return; }
+//   for (const bb::mesher::Lod& lod : *lods) export(lod.mesh, lod.report, lod.screen_coverage);
+//
+// Units: metres. Meshes are in the body's bind posture (Body::sample_posture); joint indices are
+// skeleton joint indices; triangles are counter-clockwise seen from outside.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "bb/mesher/skinned_mesh.h"
+#include "bb/modeler/body.h"
+#include "bb/result.h"
+
+namespace bb::mesher {
+
+// Sample density of one body part: `contours` rings per skeleton link along the part's axis and
+// `points` samples per ring (rays around the axis). Caps at the ends of a part use about
+// points / 4 extra rings.
+struct PartDensity {
+  int contours = 8;   // rings per link, >= 2
+  int points = 16;    // samples per ring, >= 4
+};
+
+// One level of detail.
+struct LodDensity {
+  PartDensity torso{12, 24};  // pelvis to neck (one axis along the spine)
+  PartDensity arm{8, 12};     // per arm link: upper arm, forearm
+  PartDensity leg{8, 14};     // per leg link: thigh, shank
+  PartDensity hand{4, 10};    // contour-sampled hand ("mitten"), when !vdb_extremities
+  PartDensity foot{6, 10};    // contour-sampled foot, when !vdb_extremities
+  PartDensity head{8, 16};    // contour-sampled head, when !vdb_extremities
+  // true: head, hands and feet are the full-resolution OpenVDB meshes, tagged in
+  // SkinnedMesh::part and zipped along SkinnedMesh::seam loops (decimation works on them);
+  // false: they are contour-sampled like the limbs (self-contained coarse LODs).
+  bool vdb_extremities = false;
+  float screen_coverage = 0;  // MSFT_screencoverage of this level (fraction of screen height)
+};
+
+struct MesherOptions {
+  // Levels, finest first. Empty: the default chain (default_lod_chain()).
+  std::vector<LodDensity> lods;
+  // OpenVDB voxel edge, metres, for the head/feet and (finer) for the hands.
+  float vdb_voxel_m = 0.004f;
+  float vdb_hand_voxel_m = 0.002f;
+  // Error report (LodReport): points sampled on the implicit surface and on each mesh; 0 skips
+  // the distances (report left at 0) but still checks closed/manifold/self-intersections.
+  int error_samples = 20000;
+  bool check_topology = true;  // CGAL checks per LOD (self-intersection test is the costly one)
+};
+
+// The default chain: 4 levels from about 10,000 triangles (LOD 0, OpenVDB extremities at a
+// resolution that keeps it near that budget) down to about 500.
+std::vector<LodDensity> default_lod_chain();
+
+// Samples the body's skin in its bind posture (body.sample_posture) into one skinned mesh per
+// level, LOD 0 first. Every mesh is one closed, consistently oriented 2-manifold (checked and
+// reported in LodReport), vertices carry at most 4 normalized joint influences.
+// Errors: an empty body, a skeleton without the joints the mesher needs (H-Anim names of
+// data/skeleton.json), an invalid density, or a level whose mesh could not be joined.
+Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptions& options = {});
+
+// Per-stage wall-clock seconds of the last build_lods call on this thread (for benchmarks and
+// `bodybuilder mesh --json`).
+struct StageTimes {
+  double field = 0;       // ImplicitSurface construction
+  double contours = 0;    // star-shaped contour sampling, all levels
+  double extremities = 0; // OpenVDB field sampling + volumeToMesh + clipping
+  double joining = 0;     // zipping seams and CGAL union of the pieces, all levels
+  double skinning = 0;    // weights and normals, all levels
+  double checks = 0;      // CGAL topology checks, all levels
+  double errors = 0;      // distance measurements, all levels
+};
+const StageTimes& last_stage_times();
+
+}  // namespace bb::mesher
