@@ -1,0 +1,143 @@
+// The only translation unit that includes OpenMesh.
+#include "bb/decimate/decimate.h"
+
+#include <chrono>
+
+#include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
+#include <OpenMesh/Tools/Decimater/DecimaterT.hh>
+#include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
+#include <OpenMesh/Tools/Decimater/ModQuadricT.hh>
+
+#include "modules.h"
+
+namespace bb::decimate {
+
+namespace {
+
+struct Traits : OpenMesh::DefaultTraits {
+  using Point = OpenMesh::Vec3d;  // double precision quadrics
+  using Normal = OpenMesh::Vec3d;
+  VertexAttributes(OpenMesh::Attributes::Status);
+  FaceAttributes(OpenMesh::Attributes::Status | OpenMesh::Attributes::Normal);
+  EdgeAttributes(OpenMesh::Attributes::Status);
+  HalfedgeAttributes(OpenMesh::Attributes::Status | OpenMesh::Attributes::PrevHalfedge);
+};
+using Mesh = OpenMesh::TriMesh_ArrayKernelT<Traits>;
+
+}  // namespace
+
+Result<mesher::SkinnedMesh> decimate(const mesher::SkinnedMesh& in, const Options& opt, Report* report) {
+  const size_t nv = in.positions.size();
+  if (in.indices.size() % 3 != 0) return Error{"", "indices", "index count is not a multiple of 3"};
+  if (!opt.locked.empty() && opt.locked.size() != nv)
+    return Error{"", "locked", "one flag per vertex expected"};
+  bool skinned = in.joints.size() == nv && in.weights.size() == nv;
+
+  Mesh mesh;
+  std::vector<Mesh::VertexHandle> vh(nv);
+  for (size_t i = 0; i < nv; ++i) {
+    const glm::vec3& p = in.positions[i];
+    vh[i] = mesh.add_vertex(Mesh::Point(p.x, p.y, p.z));
+  }
+  OpenMesh::VPropHandleT<int> source;
+  OpenMesh::VPropHandleT<detail::Influences> influences;
+  mesh.add_property(source);
+  mesh.add_property(influences);
+  for (size_t i = 0; i < nv; ++i) {
+    mesh.property(source, vh[i]) = static_cast<int>(i);
+    detail::Influences inf{};
+    if (skinned)
+      for (int k = 0; k < 4; ++k) inf[k] = {in.joints[i][k], in.weights[i][k]};
+    mesh.property(influences, vh[i]) = inf;
+  }
+  for (size_t t = 0; t < in.indices.size(); t += 3) {
+    uint32_t a = in.indices[t], b = in.indices[t + 1], c = in.indices[t + 2];
+    if (a >= nv || b >= nv || c >= nv)
+      return Error{"", "triangle " + std::to_string(t / 3), "vertex index out of range"};
+    if (!mesh.add_face(vh[a], vh[b], vh[c]).is_valid())
+      return Error{"", "triangle " + std::to_string(t / 3), "non-manifold or degenerate face, cannot decimate"};
+  }
+  size_t locked = 0;
+  for (size_t i = 0; i < opt.locked.size(); ++i)
+    if (opt.locked[i]) { mesh.status(vh[i]).set_locked(true); ++locked; }
+  mesh.update_face_normals();
+  // Original vertex normals: given, or area-weighted from the input faces.
+  OpenMesh::VPropHandleT<Mesh::Normal> original_normal;
+  mesh.add_property(original_normal);
+  {
+    std::vector<glm::vec3> n(nv, glm::vec3(0));
+    if (in.normals.size() == nv) {
+      n = in.normals;
+    } else {
+      for (size_t t = 0; t < in.indices.size(); t += 3) {
+        const auto& a = in.positions[in.indices[t]];
+        glm::vec3 fn = glm::cross(in.positions[in.indices[t + 1]] - a, in.positions[in.indices[t + 2]] - a);
+        for (int k = 0; k < 3; ++k) n[in.indices[t + k]] += fn;
+      }
+    }
+    for (size_t i = 0; i < nv; ++i) {
+      glm::vec3 u = glm::length(n[i]) > 0 ? glm::normalize(n[i]) : glm::vec3(0);
+      mesh.property(original_normal, vh[i]) = Mesh::Normal(u.x, u.y, u.z);
+    }
+  }
+
+  auto t0 = std::chrono::steady_clock::now();
+  {
+    OpenMesh::Decimater::DecimaterT<Mesh> dec(mesh);
+    OpenMesh::Decimater::ModQuadricT<Mesh>::Handle quadric;
+    OpenMesh::Decimater::ModNormalFlippingT<Mesh>::Handle flips;
+    detail::ModSkinWeightsT<Mesh>::Handle weights;
+    detail::ModOriginalNormalsT<Mesh>::Handle normals;
+    dec.add(quadric);
+    dec.add(flips);
+    dec.add(normals);
+    dec.module(normals).set_property(original_normal);
+    dec.module(normals).set_max_deviation_deg(opt.max_original_normal_deviation_deg);
+    dec.module(quadric).unset_max_err();
+    if (opt.max_error_m > 0) dec.module(quadric).set_max_err(opt.max_error_m * opt.max_error_m, false);
+    dec.module(flips).set_max_normal_deviation(opt.max_normal_deviation_deg);
+    if (skinned && opt.max_weight_difference < 2.0f) {
+      dec.add(weights);
+      dec.module(weights).set_property(influences);
+      dec.module(weights).set_max_difference(opt.max_weight_difference);
+    }
+    if (!dec.initialize()) return Error{"", "", "OpenMesh decimater failed to initialize"};
+    if (opt.target_triangles > 0)
+      dec.decimate_to_faces(0, opt.target_triangles);
+    else
+      dec.decimate();
+  }
+  mesh.garbage_collection();
+  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  mesher::SkinnedMesh out;
+  std::vector<uint32_t> remap(mesh.n_vertices());
+  for (auto v : mesh.vertices()) {
+    int s = mesh.property(source, v);
+    remap[v.idx()] = static_cast<uint32_t>(out.positions.size());
+    out.positions.push_back(in.positions[s]);  // halfedge collapses never move survivors
+    if (in.normals.size() == nv) out.normals.push_back(in.normals[s]);
+    if (in.uvs.size() == nv) out.uvs.push_back(in.uvs[s]);
+    if (skinned) {
+      out.joints.push_back(in.joints[s]);
+      out.weights.push_back(in.weights[s]);
+    }
+  }
+  for (auto f : mesh.faces()) {
+    auto fv = mesh.fv_iter(f);
+    for (int k = 0; k < 3; ++k, ++fv) out.indices.push_back(remap[fv->idx()]);
+  }
+  if (report) {
+    report->triangles_before = in.indices.size() / 3;
+    report->triangles_after = out.indices.size() / 3;
+    report->vertices_after = out.positions.size();
+    report->locked_vertices = locked;
+    report->seconds = seconds;
+    Distance d = mesh_distance(in.positions, in.indices, out.positions, out.indices);
+    report->hausdorff_m = d.hausdorff_m;
+    report->mean_m = d.mean_m;
+  }
+  return out;
+}
+
+}  // namespace bb::decimate
