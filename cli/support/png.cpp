@@ -4,7 +4,7 @@
 #define STBIW_WINDOWS_UTF8
 #include <stb/stb_image_write.h>
 
-#include "io.h"
+#include "../io.h"
 
 namespace bb::cli {
 

@@ -1,0 +1,163 @@
+#include "chart.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+#include <stb/stb_easy_font.h>
+
+namespace bb::cli {
+
+namespace {
+
+struct Canvas {
+  int w, h;
+  std::vector<unsigned char> px;
+  Canvas(int width, int height) : w(width), h(height), px(static_cast<size_t>(width) * height * 4, 255) {}
+  void blend(int x, int y, unsigned rgb, float a) {
+    if (x < 0 || y < 0 || x >= w || y >= h || a <= 0) return;
+    unsigned char* p = &px[(static_cast<size_t>(y) * w + x) * 4];
+    unsigned c[3] = {(rgb >> 16) & 255, (rgb >> 8) & 255, rgb & 255};
+    for (int k = 0; k < 3; ++k) p[k] = static_cast<unsigned char>(p[k] * (1 - a) + c[k] * a + 0.5f);
+    p[3] = 255;
+  }
+  void rect(int x0, int y0, int x1, int y1, unsigned rgb) {
+    for (int y = std::max(0, y0); y < std::min(h, y1); ++y)
+      for (int x = std::max(0, x0); x < std::min(w, x1); ++x) blend(x, y, rgb, 1);
+  }
+  // A thick anti-aliased segment: coverage from the distance to the segment.
+  void line(float x0, float y0, float x1, float y1, unsigned rgb, float width) {
+    float r = width * 0.5f;
+    int lx = static_cast<int>(std::floor(std::min(x0, x1) - r - 1)), hx = static_cast<int>(std::ceil(std::max(x0, x1) + r + 1));
+    int ly = static_cast<int>(std::floor(std::min(y0, y1) - r - 1)), hy = static_cast<int>(std::ceil(std::max(y0, y1) + r + 1));
+    float dx = x1 - x0, dy = y1 - y0, len2 = dx * dx + dy * dy;
+    for (int y = ly; y <= hy; ++y)
+      for (int x = lx; x <= hx; ++x) {
+        float px_ = x + 0.5f, py = y + 0.5f;
+        float t = len2 > 0 ? std::clamp(((px_ - x0) * dx + (py - y0) * dy) / len2, 0.0f, 1.0f) : 0.0f;
+        float ex = x0 + t * dx - px_, ey = y0 + t * dy - py;
+        float d = std::sqrt(ex * ex + ey * ey);
+        blend(x, y, rgb, std::clamp(r + 0.5f - d, 0.0f, 1.0f));
+      }
+  }
+  // Text with stb_easy_font, scaled; (x, y) is the top-left corner.
+  void text(float x, float y, const std::string& s, unsigned rgb, float scale = 2.0f) {
+    static char buf[60000];
+    std::vector<char> str(s.begin(), s.end());
+    str.push_back(0);
+    int quads = stb_easy_font_print(0, 0, str.data(), nullptr, buf, sizeof(buf));
+    for (int q = 0; q < quads; ++q) {
+      float* v = reinterpret_cast<float*>(buf + q * 4 * 16);
+      float qx0 = v[0], qy0 = v[1], qx1 = v[4 * 2], qy1 = v[4 * 2 + 1];
+      rect(static_cast<int>(x + qx0 * scale), static_cast<int>(y + qy0 * scale), static_cast<int>(x + qx1 * scale),
+           static_cast<int>(y + qy1 * scale), rgb);
+    }
+  }
+  static float text_width(const std::string& s, float scale = 2.0f) {
+    std::vector<char> str(s.begin(), s.end());
+    str.push_back(0);
+    return stb_easy_font_width(str.data()) * scale;
+  }
+};
+
+std::string fmt(double v) {
+  char b[32];
+  double a = std::abs(v);
+  if (a >= 1000 || (a > 0 && a < 0.01)) std::snprintf(b, sizeof b, "%.3g", v);
+  else if (a >= 10) std::snprintf(b, sizeof b, "%.0f", v);
+  else std::snprintf(b, sizeof b, "%.2g", v);
+  return b;
+}
+
+// "Nice" linear ticks covering [lo, hi].
+std::vector<double> ticks(double lo, double hi, int target) {
+  double span = hi - lo;
+  if (span <= 0) return {lo};
+  double step = std::pow(10.0, std::floor(std::log10(span / target)));
+  for (double m : {1.0, 2.0, 5.0, 10.0})
+    if (span / (step * m) <= target) { step *= m; break; }
+  std::vector<double> t;
+  for (double v = std::ceil(lo / step) * step; v <= hi + step * 1e-9; v += step) t.push_back(std::abs(v) < step * 1e-9 ? 0 : v);
+  return t;
+}
+
+std::vector<double> log_ticks(double lo, double hi) {
+  std::vector<double> t;
+  for (double d = std::pow(10.0, std::floor(std::log10(lo))); d <= hi * 1.0001; d *= 10)
+    for (double m : {1.0, 2.0, 5.0})
+      if (d * m >= lo * 0.9999 && d * m <= hi * 1.0001) t.push_back(d * m);
+  return t;
+}
+
+}  // namespace
+
+std::vector<unsigned char> render_chart(const Chart& c, int width, int height) {
+  Canvas cv(width, height);
+  const int left = 90, right = 20, top = 50, bottom = 70;
+  double x_lo = 1e300, x_hi = -1e300, y_lo = 1e300, y_hi = -1e300;
+  for (const auto& s : c.series)
+    for (size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
+      if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i])) continue;
+      x_lo = std::min(x_lo, s.x[i]); x_hi = std::max(x_hi, s.x[i]);
+      y_lo = std::min(y_lo, s.y[i]); y_hi = std::max(y_hi, s.y[i]);
+    }
+  for (double h : c.hlines) { y_lo = std::min(y_lo, h); y_hi = std::max(y_hi, h); }
+  if (x_lo > x_hi) { x_lo = 0; x_hi = 1; y_lo = 0; y_hi = 1; }
+  if (c.y_min != 0 || c.y_max != 0) { y_lo = c.y_min; y_hi = c.y_max; }
+  else if (!c.log_y) { y_lo = std::min(0.0, y_lo); y_hi = y_hi + 0.08 * (y_hi - y_lo); }
+  if (x_hi == x_lo) { x_lo -= 1; x_hi += 1; }
+  if (y_hi == y_lo) { y_hi = y_lo + 1; }
+  auto tx = [&](double v) { return c.log_x ? std::log10(v) : v; };
+  auto ty = [&](double v) { return c.log_y ? std::log10(v) : v; };
+  double X0 = tx(x_lo), X1 = tx(x_hi), Y0 = ty(c.log_y ? y_lo * 0.8 : y_lo), Y1 = ty(c.log_y ? y_hi * 1.25 : y_hi);
+  float pw = static_cast<float>(width - left - right), ph = static_cast<float>(height - top - bottom);
+  auto sx = [&](double v) { return static_cast<float>(left + (tx(v) - X0) / (X1 - X0) * pw); };
+  auto sy = [&](double v) { return static_cast<float>(top + ph - (ty(v) - Y0) / (Y1 - Y0) * ph); };
+
+  cv.text((width - Canvas::text_width(c.title, 2.5f)) / 2, 14, c.title, 0x222222, 2.5f);
+  // Grid and ticks.
+  auto xt = c.log_x ? log_ticks(x_lo, x_hi) : ticks(x_lo, x_hi, 8);
+  auto yt = c.log_y ? log_ticks(y_lo * 0.8, y_hi * 1.25) : ticks(Y0, Y1, 7);
+  for (double v : xt) {
+    float x = sx(v);
+    cv.line(x, static_cast<float>(top), x, top + ph, 0xe4e4e4, 1);
+    std::string s = fmt(v);
+    cv.text(x - Canvas::text_width(s) / 2, top + ph + 8, s, 0x444444);
+  }
+  for (double v : yt) {
+    float y = sy(v);
+    if (y < top - 1 || y > top + ph + 1) continue;
+    cv.line(static_cast<float>(left), y, left + pw, y, 0xe4e4e4, 1);
+    std::string s = fmt(v);
+    cv.text(left - 8 - Canvas::text_width(s), y - 6, s, 0x444444);
+  }
+  for (double h : c.hlines) cv.line(static_cast<float>(left), sy(h), left + pw, sy(h), 0x888888, 1.5f);
+  cv.line(static_cast<float>(left), static_cast<float>(top), static_cast<float>(left), top + ph, 0x222222, 1.5f);
+  cv.line(static_cast<float>(left), top + ph, left + pw, top + ph, 0x222222, 1.5f);
+  cv.text(left + (pw - Canvas::text_width(c.x_label)) / 2, static_cast<float>(height - 30), c.x_label, 0x222222);
+  // Y label, written horizontally above the axis (easy_font has no rotation).
+  cv.text(8, static_cast<float>(top - 22), c.y_label, 0x222222);
+  // Series.
+  for (const auto& s : c.series) {
+    for (size_t i = 0; i + 1 < s.x.size() && i + 1 < s.y.size(); ++i)
+      cv.line(sx(s.x[i]), sy(s.y[i]), sx(s.x[i + 1]), sy(s.y[i + 1]), s.color, 2.5f);
+    for (size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
+      int x = static_cast<int>(sx(s.x[i])), y = static_cast<int>(sy(s.y[i]));
+      cv.rect(x - 3, y - 3, x + 4, y + 4, s.color);
+    }
+  }
+  // Legend, top right.
+  float ly = static_cast<float>(top + 8);
+  float lw = 0;
+  for (const auto& s : c.series) lw = std::max(lw, Canvas::text_width(s.label));
+  float lx = left + pw - lw - 40;
+  for (const auto& s : c.series) {
+    cv.line(lx, ly + 7, lx + 22, ly + 7, s.color, 3);
+    cv.text(lx + 28, ly, s.label, 0x222222);
+    ly += 22;
+  }
+  return cv.px;
+}
+
+}  // namespace bb::cli

@@ -1,0 +1,27 @@
+// Line charts as RGBA images, for the flow test bed's sweeps and scaling results (no plotting
+// dependency: axes, ticks, labels with stb_easy_font, lines, markers and a legend).
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace bb::cli {
+
+struct Series {
+  std::string label;
+  std::vector<double> x, y;
+  unsigned color = 0x1f77b4;  // 0xRRGGBB
+};
+
+struct Chart {
+  std::string title, x_label, y_label;
+  std::vector<Series> series;
+  bool log_x = false, log_y = false;
+  double y_min = 0, y_max = 0;  // both 0: from the data (with 0 included on a linear axis)
+  std::vector<double> hlines;   // horizontal reference lines (e.g. 1.0 = geometry)
+};
+
+// Renders the chart into width x height RGBA8 pixels (rows top to bottom).
+std::vector<unsigned char> render_chart(const Chart& chart, int width, int height);
+
+}  // namespace bb::cli

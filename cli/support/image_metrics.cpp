@@ -1,0 +1,74 @@
+#include "image_metrics.h"
+
+#include <cmath>
+#include <limits>
+#include <vector>
+
+namespace bb::cli {
+
+double psnr_covered(const unsigned char* a, const unsigned char* b, int w, int h) {
+  double se = 0;
+  size_t n = 0;
+  for (size_t i = 0; i < static_cast<size_t>(w) * h; ++i) {
+    const unsigned char* p = a + 4 * i;
+    const unsigned char* q = b + 4 * i;
+    if (p[3] == 0 && q[3] == 0) continue;
+    for (int k = 0; k < 3; ++k) {
+      // Compare premultiplied colours so that a pixel covered in one image only counts fully.
+      double x = p[k] * (p[3] / 255.0), y = q[k] * (q[3] / 255.0);
+      se += (x - y) * (x - y);
+    }
+    n += 3;
+  }
+  if (n == 0 || se == 0) return std::numeric_limits<double>::infinity();
+  double mse = se / n;
+  return 10.0 * std::log10(255.0 * 255.0 / mse);
+}
+
+double ssim_covered(const unsigned char* a, const unsigned char* b, int w, int h) {
+  auto luma = [](const unsigned char* p) {
+    double al = p[3] / 255.0;
+    return (0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2]) * al;
+  };
+  std::vector<double> la(static_cast<size_t>(w) * h), lb(la.size());
+  std::vector<char> cov(la.size());
+  for (size_t i = 0; i < la.size(); ++i) {
+    la[i] = luma(a + 4 * i);
+    lb[i] = luma(b + 4 * i);
+    cov[i] = a[4 * i + 3] != 0 || b[4 * i + 3] != 0;
+  }
+  const double c1 = (0.01 * 255) * (0.01 * 255), c2 = (0.03 * 255) * (0.03 * 255);
+  double sum = 0;
+  size_t windows = 0;
+  for (int y = 0; y + 8 <= h; y += 4)
+    for (int x = 0; x + 8 <= w; x += 4) {
+      bool any = false;
+      double ma = 0, mb = 0;
+      for (int j = 0; j < 8; ++j)
+        for (int i = 0; i < 8; ++i) {
+          size_t k = static_cast<size_t>(y + j) * w + x + i;
+          any |= cov[k] != 0;
+          ma += la[k];
+          mb += lb[k];
+        }
+      if (!any) continue;
+      ma /= 64;
+      mb /= 64;
+      double va = 0, vb = 0, cab = 0;
+      for (int j = 0; j < 8; ++j)
+        for (int i = 0; i < 8; ++i) {
+          size_t k = static_cast<size_t>(y + j) * w + x + i;
+          va += (la[k] - ma) * (la[k] - ma);
+          vb += (lb[k] - mb) * (lb[k] - mb);
+          cab += (la[k] - ma) * (lb[k] - mb);
+        }
+      va /= 63;
+      vb /= 63;
+      cab /= 63;
+      sum += ((2 * ma * mb + c1) * (2 * cab + c2)) / ((ma * ma + mb * mb + c1) * (va + vb + c2));
+      ++windows;
+    }
+  return windows ? sum / windows : 1.0;
+}
+
+}  // namespace bb::cli
