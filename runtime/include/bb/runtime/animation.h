@@ -1,0 +1,40 @@
+// Clip sampling and forward kinematics on the CPU (exact; the per-frame paths use the baked
+// clips of Model instead). All functions write into caller-owned spans and allocate nothing.
+#pragma once
+
+#include <span>
+
+#include <glm/glm.hpp>
+
+#include "bb/runtime/model.h"
+
+namespace bb::runtime {
+
+// Time inside a clip of `duration` seconds: looping wraps into [0, duration) (0 when duration
+// is 0); otherwise clamps to [0, duration].
+float clip_time(float time, float duration, bool loop);
+
+// Value of `channel` at `time` seconds (clamped to its first/last key). Step holds the previous
+// key; linear lerps (rotations: shortest-path slerp); cubic spline uses the glTF Hermite form.
+// Rotations come back as a unit quaternion in (x, y, z, w).
+glm::vec4 sample_channel(const Channel& channel, float time);
+
+// Local transforms of every node for clip `clip` at `time` (not wrapped; clamped to the keys).
+// `clip` may be -1 for the rest pose. locals.size() == model.nodes.size().
+void sample_clip(const Model& model, int clip, float time, std::span<Transform> locals);
+
+// Model-space matrices of every node from their local transforms (sizes == nodes.size()).
+void world_matrices(const Model& model, std::span<const Transform> locals,
+                    std::span<glm::mat4> world);
+
+// Skinning matrices: out[i] = world[palette[i].node] * palette[i].inverse_bind
+// (out.size() == model.palette.size()).
+void palette_matrices(const Model& model, std::span<const glm::mat4> world,
+                      std::span<glm::mat4> out);
+
+// Position of a posture point given the node world matrices.
+inline glm::vec3 point_position(const PosturePoint& p, std::span<const glm::mat4> world) {
+  return glm::vec3(world[p.node] * glm::vec4(p.offset, 1.0f));
+}
+
+}  // namespace bb::runtime

@@ -1,0 +1,174 @@
+// A compact, immutable runtime asset built from a skinned glTF file: node hierarchy, skin
+// palette (node + inverse bind matrix), mesh LOD levels, base-colour textures, clips, and the
+// data the impostor path needs (Ta, the snapshot radius, posture-test distances).
+//
+// Units: metres, seconds, radians. Model space is the glTF scene's space (Y up, +Z forward).
+// No GL or tinygltf type appears here.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <glm/glm.hpp>
+#include <glm/gtc/quaternion.hpp>
+
+#include "bb/result.h"
+
+namespace bb::runtime {
+
+struct Transform {
+  glm::vec3 translation{0.0f};
+  glm::quat rotation{1.0f, 0.0f, 0.0f, 0.0f};  // unit
+  glm::vec3 scale{1.0f};
+  glm::mat4 matrix() const;
+};
+
+struct Node {
+  std::string name;
+  int parent = -1;  // index into Model::nodes, always < this node's index; -1 for a root
+  Transform rest;   // local transform when no clip animates it
+};
+
+// One skinning matrix slot: palette matrix = world(node) * inverse_bind. Rigid (unskinned)
+// meshes get a slot with their own node and an identity inverse bind.
+struct PaletteEntry {
+  int node = 0;
+  glm::mat4 inverse_bind{1.0f};
+};
+
+struct Vertex {
+  glm::vec3 position{0.0f};  // bind space
+  glm::vec3 normal{0.0f, 1.0f, 0.0f};
+  glm::vec2 uv{0.0f};
+  glm::u16vec4 joints{0};    // indices into Model::palette
+  glm::vec4 weights{1.0f, 0.0f, 0.0f, 0.0f};  // sum to 1
+};
+
+struct Primitive {
+  std::uint32_t first_index = 0;  // into MeshLod::indices
+  std::uint32_t index_count = 0;  // a multiple of 3 (triangles)
+  int material = 0;               // into Model::materials (a default one is always present)
+};
+
+struct MeshLod {
+  std::vector<Vertex> vertices;
+  std::vector<std::uint32_t> indices;
+  std::vector<Primitive> primitives;
+  // MSFT_screencoverage: use this level while the character's on-screen height divided by
+  // the viewport height is >= this value (level 0: the finest). 0 for the last level.
+  float screen_coverage = 0.0f;
+  std::size_t triangle_count() const { return indices.size() / 3; }
+};
+
+struct Material {
+  glm::vec4 base_color{1.0f};  // linear factor
+  int texture = -1;            // into Model::textures, or -1
+  float alpha_cutoff = 0.5f;   // used when alpha_mask
+  bool alpha_mask = false;
+};
+
+struct Texture {
+  int width = 0, height = 0;
+  std::vector<std::uint8_t> rgba;  // width * height * 4, rows top to bottom (glTF uv origin)
+};
+
+enum class Interpolation { kStep, kLinear, kCubicSpline };
+enum class ChannelPath { kTranslation, kRotation, kScale };
+
+struct Channel {
+  int node = 0;
+  ChannelPath path = ChannelPath::kTranslation;
+  Interpolation interpolation = Interpolation::kLinear;
+  std::vector<float> times;         // strictly increasing, seconds
+  std::vector<glm::vec4> values;    // xyz (or quaternion xyzw); cubic: 3 per key (in, value, out)
+};
+
+struct Clip {
+  std::string name;
+  float duration = 0.0f;  // seconds: the last key time (>= 0)
+  std::vector<Channel> channels;
+};
+
+// Posture test (paper section 5.1): a point is a joint origin plus an offset in that joint's frame.
+struct PosturePoint {
+  int node = 0;
+  glm::vec3 offset{0.0f};
+};
+struct PosturePair {
+  PosturePoint a, b;
+};
+constexpr int kPosturePairs = 4;
+
+// A clip resampled at a fixed rate for the per-frame paths (GPU skinning reads the palette
+// rows; the cache tests read the posture distances and nothing else).
+struct BakedClip {
+  int frame_count = 0;      // >= 1; frame f is at time min(f / rate, duration)
+  float rate = 60.0f;       // frames per second
+  std::uint32_t first_row = 0;  // first row of this clip in Model::baked_palette()
+  // kPosturePairs squared distances per frame (model space, m^2).
+  std::vector<std::array<float, kPosturePairs>> posture;
+};
+
+class Model {
+ public:
+  std::string name;  // file stem
+  std::vector<Node> nodes;           // parents before children
+  std::vector<PaletteEntry> palette; // at most 65535
+  std::vector<MeshLod> lods;         // >= 1 level, finest first
+  std::vector<Material> materials;   // >= 1
+  std::vector<Texture> textures;
+  std::vector<Clip> clips;           // may be empty (then the rest pose is a 0 s clip)
+
+  // Section 4.2: Ta, the centre of the bounds of every pose of every clip (model space), and the
+  // radius around Ta that contains every vertex of every pose: the snapshot frustum's half size.
+  glm::vec3 ta{0.0f};
+  float radius = 1.0f;
+  glm::vec3 bounds_min{0.0f}, bounds_max{0.0f};  // of all poses, model space
+
+  // Index of the clip named `name`, or -1.
+  int find_clip(std::string_view clip_name) const;
+  int find_node(std::string_view node_name) const;
+  // Duration of clip `clip` (0 when there are no clips).
+  float clip_duration(int clip) const;
+
+  // Posture pairs used by the cache test; chosen automatically at load (the widest-spanning
+  // pairs of end-effector points whose distance varies in the clips). Replace them with
+  // set_posture_pairs (re-bakes the distances; not for the per-frame path).
+  std::span<const PosturePair> posture_pairs() const { return posture_pairs_; }
+  void set_posture_pairs(std::span<const PosturePair> pairs);
+  // Same, by joint names; an error names the unknown joint.
+  Status set_posture_pairs(std::span<const std::pair<std::string, std::string>> joint_names);
+
+  // Baked clips (one per clip, or one 1-frame rest pose when there are no clips).
+  std::span<const BakedClip> baked_clips() const { return baked_; }
+  // Palette rows: palette.size() * 3 vec4 per frame (the transposed top 3 rows of each
+  // palette matrix), frames of all clips one after the other.
+  std::span<const glm::vec4> baked_palette() const { return baked_palette_; }
+
+  // Rebuilds the baked data at `rate` frames per second (load does this at 60).
+  void bake(float rate = 60.0f);
+
+ private:
+  std::vector<PosturePair> posture_pairs_;
+  std::vector<BakedClip> baked_;
+  std::vector<glm::vec4> baked_palette_;
+  void bake_posture();
+};
+
+struct LoadOptions {
+  float bake_rate = 60.0f;  // frames per second for the baked clips
+};
+
+// Loads a .gltf or .glb file. The character is every mesh reachable from the default scene
+// (or scene 0, or every root node): skinned meshes use their skin (their node's own transform is
+// ignored, as glTF says), unskinned ones follow their node rigidly. MSFT_lod on a mesh node adds
+// levels; extras.MSFT_screencoverage gives their switch values. Errors name the file, a JSON
+// path and the reason; malformed files never crash.
+Result<Model> load_model(const std::string& path, const LoadOptions& options = {});
+
+}  // namespace bb::runtime

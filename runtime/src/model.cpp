@@ -1,0 +1,208 @@
+// Model: baking the clips for the per-frame paths, the snapshot frame (Ta, radius) and the
+// automatic choice of the posture-test pairs.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "bb/runtime/animation.h"
+#include "bb/runtime/model.h"
+
+namespace bb::runtime {
+
+int Model::find_clip(std::string_view clip_name) const {
+  for (std::size_t i = 0; i < clips.size(); ++i)
+    if (clips[i].name == clip_name) return static_cast<int>(i);
+  return -1;
+}
+
+int Model::find_node(std::string_view node_name) const {
+  for (std::size_t i = 0; i < nodes.size(); ++i)
+    if (nodes[i].name == node_name) return static_cast<int>(i);
+  return -1;
+}
+
+float Model::clip_duration(int clip) const {
+  return clip >= 0 && clip < static_cast<int>(clips.size()) ? clips[clip].duration : 0.0f;
+}
+
+void Model::set_posture_pairs(std::span<const PosturePair> pairs) {
+  posture_pairs_.assign(pairs.begin(), pairs.end());
+  if (posture_pairs_.empty()) posture_pairs_.push_back(PosturePair{});
+  while (posture_pairs_.size() < kPosturePairs) posture_pairs_.push_back(posture_pairs_.back());
+  posture_pairs_.resize(kPosturePairs);
+  bake_posture();
+}
+
+Status Model::set_posture_pairs(std::span<const std::pair<std::string, std::string>> joint_names) {
+  std::vector<PosturePair> pairs;
+  for (const auto& [a, b] : joint_names) {
+    int na = find_node(a), nb = find_node(b);
+    if (na < 0) return Error{name, "", "no joint named \"" + a + "\""};
+    if (nb < 0) return Error{name, "", "no joint named \"" + b + "\""};
+    pairs.push_back(PosturePair{{na, glm::vec3(0.0f)}, {nb, glm::vec3(0.0f)}});
+  }
+  if (pairs.empty()) return Error{name, "", "no posture pairs given"};
+  set_posture_pairs(pairs);
+  return Ok{};
+}
+
+namespace {
+
+// Frames sampled to measure a clip (bounds, variability): every baked frame up to `cap`.
+int sample_stride(int frames, int cap) { return std::max(1, (frames + cap - 1) / cap); }
+
+}  // namespace
+
+void Model::bake(float rate) {
+  rate = rate > 0.0f ? rate : 60.0f;
+  baked_.clear();
+  baked_palette_.clear();
+  const std::size_t nn = nodes.size(), np = palette.size();
+  std::vector<Transform> locals(nn);
+  std::vector<glm::mat4> world(nn), pal(np);
+  const int clip_count = std::max<int>(1, static_cast<int>(clips.size()));
+  for (int ci = 0; ci < clip_count; ++ci) {
+    const int clip = clips.empty() ? -1 : ci;
+    const float dur = clip_duration(clip);
+    BakedClip bc;
+    bc.rate = rate;
+    bc.frame_count = dur > 0.0f ? static_cast<int>(std::ceil(dur * rate - 1e-3f)) + 1 : 1;
+    bc.first_row = static_cast<std::uint32_t>(baked_palette_.size() / std::max<std::size_t>(1, np * 3));
+    for (int f = 0; f < bc.frame_count; ++f) {
+      sample_clip(*this, clip, std::min(f / rate, dur), locals);
+      world_matrices(*this, locals, world);
+      palette_matrices(*this, world, pal);
+      for (const glm::mat4& m : pal)
+        for (int r = 0; r < 3; ++r) baked_palette_.emplace_back(m[0][r], m[1][r], m[2][r], m[3][r]);
+    }
+    baked_.push_back(std::move(bc));
+  }
+  // Section 4.2: bounds of every pose of every clip (finest level), then the radius around their centre.
+  const MeshLod& lod = lods.empty() ? MeshLod{} : lods.front();
+  auto skin = [&](const Vertex& v, std::size_t frame_row) {
+    glm::vec3 p(0.0f);
+    for (int k = 0; k < 4; ++k) {
+      if (v.weights[k] == 0.0f) continue;
+      const glm::vec4* r = &baked_palette_[(frame_row * np + v.joints[k]) * 3];
+      glm::vec4 h(v.position, 1.0f);
+      p += v.weights[k] * glm::vec3(glm::dot(r[0], h), glm::dot(r[1], h), glm::dot(r[2], h));
+    }
+    return p;
+  };
+  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+  for (const BakedClip& bc : baked_)
+    for (int f = 0; f < bc.frame_count; f += sample_stride(bc.frame_count, 120))
+      for (const Vertex& v : lod.vertices) {
+        glm::vec3 p = skin(v, bc.first_row + f);
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+      }
+  if (lod.vertices.empty()) lo = hi = glm::vec3(0.0f);
+  bounds_min = lo;
+  bounds_max = hi;
+  ta = 0.5f * (lo + hi);
+  float r2 = 0.0f;
+  for (const BakedClip& bc : baked_)
+    for (int f = 0; f < bc.frame_count; f += sample_stride(bc.frame_count, 120))
+      for (const Vertex& v : lod.vertices) {
+        glm::vec3 d = skin(v, bc.first_row + f) - ta;
+        r2 = std::max(r2, glm::dot(d, d));
+      }
+  // Frames between the sampled ones can reach a little further.
+  radius = std::max(1e-4f, std::sqrt(r2) * 1.02f);
+  bake_posture();
+}
+
+void Model::bake_posture() {
+  const std::size_t nn = nodes.size();
+  std::vector<Transform> locals(nn);
+  std::vector<glm::mat4> world(nn);
+  if (posture_pairs_.empty()) {
+    // Section 5.1, for any skeleton: candidate points are the skeleton's end effectors (leaf joints)
+    // and points beyond them along their last bone; the pairs are the widest-spanning ones whose
+    // distance actually changes in the clips, each point used at most twice.
+    std::vector<bool> in_skeleton(nn, false), has_child(nn, false);
+    for (const auto& e : palette) in_skeleton[e.node] = true;
+    for (std::size_t i = 0; i < nn; ++i)
+      if (in_skeleton[i] && nodes[i].parent >= 0 && in_skeleton[nodes[i].parent]) has_child[nodes[i].parent] = true;
+    sample_clip(*this, -1, 0.0f, locals);
+    world_matrices(*this, locals, world);
+    std::vector<PosturePoint> points;
+    int leaves = 0;
+    for (std::size_t i = 0; i < nn; ++i) {
+      if (!in_skeleton[i] || has_child[i]) continue;
+      ++leaves;
+      points.push_back(PosturePoint{static_cast<int>(i), glm::vec3(0.0f)});
+      int p = nodes[i].parent;
+      if (p >= 0) {
+        glm::vec3 a(world[p][3]), b(world[i][3]);
+        if (glm::length(b - a) > 1e-6f) {
+          glm::vec3 tip = b + 0.5f * (b - a);
+          points.push_back(PosturePoint{static_cast<int>(i), glm::vec3(glm::inverse(world[i]) * glm::vec4(tip, 1.0f))});
+        }
+      }
+    }
+    if (leaves < 3)
+      for (std::size_t i = 0; i < nn; ++i)
+        if (in_skeleton[i] && has_child[i]) points.push_back(PosturePoint{static_cast<int>(i), glm::vec3(0.0f)});
+    if (points.size() > 64) points.resize(64);  // bounded cost on huge skeletons
+    const std::size_t n = points.size();
+    struct Cand { int a, b; float rest, lo, hi; };
+    std::vector<Cand> cands;
+    for (std::size_t a = 0; a < n; ++a)
+      for (std::size_t b = a + 1; b < n; ++b) {
+        float d = glm::distance(point_position(points[a], world), point_position(points[b], world));
+        cands.push_back(Cand{static_cast<int>(a), static_cast<int>(b), d, d, d});
+      }
+    std::vector<glm::vec3> pos(n);
+    for (std::size_t ci = 0; ci < clips.size(); ++ci) {
+      const BakedClip& bc = baked_[ci];
+      for (int f = 0; f < bc.frame_count; f += sample_stride(bc.frame_count, 60)) {
+        sample_clip(*this, static_cast<int>(ci), std::min(f / bc.rate, clips[ci].duration), locals);
+        world_matrices(*this, locals, world);
+        for (std::size_t k = 0; k < n; ++k) pos[k] = point_position(points[k], world);
+        for (Cand& c : cands) {
+          float d = glm::distance(pos[c.a], pos[c.b]);
+          c.lo = std::min(c.lo, d);
+          c.hi = std::max(c.hi, d);
+        }
+      }
+    }
+    auto varies = [](const Cand& c) { return c.hi - c.lo > 1e-3f * std::max(c.hi, 1e-6f); };
+    std::stable_sort(cands.begin(), cands.end(), [&](const Cand& x, const Cand& y) {
+      if (varies(x) != varies(y)) return varies(x);
+      return x.rest > y.rest;
+    });
+    std::vector<int> uses(n, 0);
+    for (int pass = 0; pass < 2 && posture_pairs_.size() < kPosturePairs; ++pass)
+      for (const Cand& c : cands) {
+        if (posture_pairs_.size() >= kPosturePairs) break;
+        if (pass == 0 && (uses[c.a] >= 2 || uses[c.b] >= 2)) continue;
+        bool dup = false;
+        for (const auto& pp : posture_pairs_)
+          dup |= pp.a.node == points[c.a].node && pp.a.offset == points[c.a].offset && pp.b.node == points[c.b].node &&
+                 pp.b.offset == points[c.b].offset;
+        if (dup) continue;
+        posture_pairs_.push_back(PosturePair{points[c.a], points[c.b]});
+        ++uses[c.a];
+        ++uses[c.b];
+      }
+    if (posture_pairs_.empty()) posture_pairs_.push_back(PosturePair{});
+    while (posture_pairs_.size() < kPosturePairs) posture_pairs_.push_back(posture_pairs_.back());
+  }
+  for (std::size_t ci = 0; ci < baked_.size(); ++ci) {
+    BakedClip& bc = baked_[ci];
+    const int clip = clips.empty() ? -1 : static_cast<int>(ci);
+    bc.posture.resize(bc.frame_count);
+    for (int f = 0; f < bc.frame_count; ++f) {
+      sample_clip(*this, clip, std::min(f / bc.rate, clip_duration(clip)), locals);
+      world_matrices(*this, locals, world);
+      for (int k = 0; k < kPosturePairs; ++k) {
+        glm::vec3 d = point_position(posture_pairs_[k].a, world) - point_position(posture_pairs_[k].b, world);
+        bc.posture[f][k] = glm::dot(d, d);
+      }
+    }
+  }
+}
+
+}  // namespace bb::runtime

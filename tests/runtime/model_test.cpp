@@ -1,0 +1,280 @@
+// Loading and animating skinned glTF: exact answers on SimpleSkin and hand-made channels, properties
+// on the real models, and every malformed validator file rejected cleanly (never a crash).
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "bb/runtime/animation.h"
+#include "bb/runtime/model.h"
+
+namespace bb::runtime {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string gltf_dir() { return std::string(BB_SHARED_DATA_DIR) + "/gltf"; }
+
+#define REQUIRE_SHARED(path)                                                         \
+  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << (path)
+
+glm::vec3 skin_cpu(const Model& m, const Vertex& v, std::span<const glm::mat4> pal) {
+  glm::vec3 p(0.0f);
+  for (int k = 0; k < 4; ++k) p += v.weights[k] * glm::vec3(pal[v.joints[k]] * glm::vec4(v.position, 1.0f));
+  (void)m;
+  return p;
+}
+
+struct Posed {
+  std::vector<Transform> locals;
+  std::vector<glm::mat4> world, pal;
+  Posed(const Model& m, int clip, float t) : locals(m.nodes.size()), world(m.nodes.size()), pal(m.palette.size()) {
+    sample_clip(m, clip, t, locals);
+    world_matrices(m, locals, world);
+    palette_matrices(m, world, pal);
+  }
+};
+
+void expect_vec3(glm::vec3 a, glm::vec3 b, float eps) {
+  EXPECT_NEAR(a.x, b.x, eps);
+  EXPECT_NEAR(a.y, b.y, eps);
+  EXPECT_NEAR(a.z, b.z, eps);
+}
+
+TEST(ClipTime, LoopsAndClamps) {
+  EXPECT_FLOAT_EQ(clip_time(2.5f, 2.0f, true), 0.5f);
+  EXPECT_FLOAT_EQ(clip_time(-0.5f, 2.0f, true), 1.5f);
+  EXPECT_FLOAT_EQ(clip_time(4.0f, 2.0f, true), 0.0f);
+  EXPECT_FLOAT_EQ(clip_time(2.5f, 2.0f, false), 2.0f);
+  EXPECT_FLOAT_EQ(clip_time(-1.0f, 2.0f, false), 0.0f);
+  EXPECT_FLOAT_EQ(clip_time(3.0f, 0.0f, true), 0.0f);
+}
+
+TEST(SampleChannel, StepLinearCubic) {
+  Channel c;
+  c.path = ChannelPath::kTranslation;
+  c.times = {1.0f, 2.0f, 4.0f};
+  c.values = {{0, 0, 0, 0}, {2, 4, 6, 0}, {4, 4, 4, 0}};
+  c.interpolation = Interpolation::kLinear;
+  EXPECT_EQ(sample_channel(c, 0.0f), glm::vec4(0, 0, 0, 0));    // before the first key
+  EXPECT_EQ(sample_channel(c, 1.5f), glm::vec4(1, 2, 3, 0));
+  EXPECT_EQ(sample_channel(c, 3.0f), glm::vec4(3, 4, 5, 0));
+  EXPECT_EQ(sample_channel(c, 9.0f), glm::vec4(4, 4, 4, 0));    // after the last
+  c.interpolation = Interpolation::kStep;
+  EXPECT_EQ(sample_channel(c, 1.99f), glm::vec4(0, 0, 0, 0));
+  EXPECT_EQ(sample_channel(c, 2.0f), glm::vec4(2, 4, 6, 0));
+  // Cubic with zero tangents: smoothstep between the values.
+  c.interpolation = Interpolation::kCubicSpline;
+  c.values = {{}, {0, 0, 0, 0}, {}, {}, {2, 0, 0, 0}, {}, {}, {4, 0, 0, 0}, {}};
+  EXPECT_FLOAT_EQ(sample_channel(c, 1.5f).x, 1.0f);
+  EXPECT_FLOAT_EQ(sample_channel(c, 1.25f).x, 2.0f * (3 * 0.0625f - 2 * 0.015625f));
+  // Out-tangent 2 at key 0 (dt = 1): adds (u^3 - 2u^2 + u) * 2.
+  c.values[2] = {2, 0, 0, 0};
+  EXPECT_FLOAT_EQ(sample_channel(c, 1.5f).x, 1.0f + (0.125f - 0.5f + 0.5f) * 2.0f);
+}
+
+TEST(SampleChannel, SlerpTakesShortestPath) {
+  Channel c;
+  c.path = ChannelPath::kRotation;
+  c.times = {0.0f, 1.0f};
+  const float s = std::sin(glm::radians(45.0f)), co = std::cos(glm::radians(45.0f));
+  c.values = {{0, 0, 0, 1}, {0, 0, -s, -co}};  // 90 degrees about Z, given with a negative w
+  glm::vec4 q = sample_channel(c, 0.5f);
+  EXPECT_NEAR(std::abs(q.z), std::sin(glm::radians(22.5f)), 1e-6f);
+  EXPECT_NEAR(std::abs(q.w), std::cos(glm::radians(22.5f)), 1e-6f);
+  EXPECT_GT(q.z * q.w, 0.0f);  // the same sense as +90 about Z, not the long way round
+}
+
+TEST(LoadModel, MissingAndEmptyFilesAreErrors) {
+  auto r = load_model("/nonexistent/x.glb");
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.error().message().find("no such file"), std::string::npos);
+  fs::path tmp = fs::temp_directory_path() / "bb_runtime_empty.gltf";
+  { std::ofstream(tmp) << "{"; }
+  auto e = load_model(tmp.string());
+  ASSERT_FALSE(e.ok());
+  EXPECT_EQ(e.error().file, tmp.string());
+  fs::remove(tmp);
+}
+
+TEST(LoadModel, SimpleSkinExactPoses) {
+  std::string path = gltf_dir() + "/SimpleSkin.gltf";
+  REQUIRE_SHARED(path);
+  auto r = load_model(path);
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  const Model& m = *r;
+  ASSERT_EQ(m.nodes.size(), 3u);
+  ASSERT_EQ(m.palette.size(), 2u);
+  ASSERT_EQ(m.lods.size(), 1u);
+  EXPECT_EQ(m.lods[0].vertices.size(), 10u);
+  EXPECT_EQ(m.lods[0].indices.size(), 24u);
+  ASSERT_EQ(m.clips.size(), 1u);
+  EXPECT_FLOAT_EQ(m.clips[0].duration, 5.5f);
+  // Rest pose: skinning gives the bind positions back.
+  Posed rest(m, 0, 0.0f);
+  for (const Vertex& v : m.lods[0].vertices) expect_vec3(skin_cpu(m, v, rest.pal), v.position, 1e-6f);
+  // t = 1 s: joint 1 (at y = 1) turned 90 degrees about Z.
+  Posed p(m, 0, 1.0f);
+  const auto& vs = m.lods[0].vertices;
+  int top = -1, mid = -1;
+  for (int i = 0; i < 10; ++i) {
+    if (vs[i].position == glm::vec3(0.5f, 2.0f, 0.0f)) top = i;
+    if (vs[i].position == glm::vec3(-0.5f, 1.0f, 0.0f)) mid = i;
+  }
+  ASSERT_GE(top, 0);
+  ASSERT_GE(mid, 0);
+  expect_vec3(skin_cpu(m, vs[top], p.pal), glm::vec3(-1.0f, 1.5f, 0.0f), 1e-5f);
+  // Half on each joint: the average of (-0.5, 1) and its rotated image (0, 0.5).
+  expect_vec3(skin_cpu(m, vs[mid], p.pal), glm::vec3(-0.25f, 0.75f, 0.0f), 1e-5f);
+  // Between keys (t = 0.25): slerp half way from identity to 45 degrees.
+  Posed q(m, 0, 0.25f);
+  glm::quat rot = q.locals[m.palette[1].node].rotation;
+  EXPECT_NEAR(glm::degrees(glm::angle(rot)), 22.5f, 0.05f);
+  // Baked palette row 60 (t = 1 s) matches the exact palette.
+  const auto rows = m.baked_palette();
+  const std::size_t f = 60;
+  for (std::size_t j = 0; j < m.palette.size(); ++j)
+    for (int row = 0; row < 3; ++row)
+      for (int c = 0; c < 4; ++c) EXPECT_NEAR(rows[(f * m.palette.size() + j) * 3 + row][c], p.pal[j][c][row], 1e-5f);
+}
+
+TEST(LoadModel, RiggedSimplePostureTestSeesTheBend) {
+  std::string path = gltf_dir() + "/RiggedSimple.gltf";
+  REQUIRE_SHARED(path);
+  auto r = load_model(path);
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  const Model& m = *r;
+  EXPECT_EQ(m.palette.size(), 2u);
+  EXPECT_EQ(m.lods[0].vertices.size(), 96u);
+  ASSERT_EQ(m.clips.size(), 1u);
+  EXPECT_NEAR(m.clips[0].duration, 2.083333f, 1e-5f);
+  // The root node's matrix turns Z up into Y up: the cylinder stands along +Y.
+  glm::vec3 size = m.bounds_max - m.bounds_min;
+  EXPECT_GT(size.y, size.x);
+  EXPECT_GT(size.y, size.z);
+  // The automatic posture pairs must change with the bend (a 2-joint chain: root to tip).
+  const BakedClip& bc = m.baked_clips()[0];
+  float lo = 1e30f, hi = 0.0f;
+  for (const auto& d : bc.posture) lo = std::min(lo, d[0]), hi = std::max(hi, d[0]);
+  EXPECT_GT(hi - lo, 0.01f * hi);
+  // Every pose lies inside the snapshot sphere.
+  for (int f = 0; f < bc.frame_count; f += 5) {
+    Posed p(m, 0, f / bc.rate);
+    for (const Vertex& v : m.lods[0].vertices) EXPECT_LE(glm::distance(skin_cpu(m, v, p.pal), m.ta), m.radius);
+  }
+}
+
+TEST(LoadModel, CesiumManNonRootSkinnedNode) {
+  std::string path = gltf_dir() + "/CesiumMan.glb";
+  REQUIRE_SHARED(path);
+  auto r = load_model(path);
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  const Model& m = *r;
+  EXPECT_EQ(m.palette.size(), 19u);
+  EXPECT_EQ(m.lods[0].vertices.size(), 3273u);
+  EXPECT_EQ(m.lods[0].triangle_count(), 4672u);
+  ASSERT_EQ(m.textures.size(), 1u);
+  EXPECT_GT(m.textures[0].width, 0);
+  ASSERT_EQ(m.clips.size(), 1u);
+  EXPECT_NEAR(m.clips[0].duration, 2.0f, 0.05f);
+  // Standing man, Y up, about 1.5 m tall, feet near y = 0.
+  glm::vec3 size = m.bounds_max - m.bounds_min;
+  EXPECT_GT(size.y, 1.2f);
+  EXPECT_LT(size.y, 2.0f);
+  EXPECT_GT(size.y, size.x);
+  EXPECT_NEAR(m.bounds_min.y, 0.0f, 0.1f);
+  // The radius covers half the height at least and not absurdly more.
+  EXPECT_GT(m.radius, 0.5f * size.y);
+  EXPECT_LT(m.radius, 1.0f * size.y);
+  // Posture distances vary while walking.
+  const BakedClip& bc = m.baked_clips()[0];
+  float lo = 1e30f, hi = 0.0f;
+  for (const auto& d : bc.posture) lo = std::min(lo, d[0]), hi = std::max(hi, d[0]);
+  EXPECT_GT(hi - lo, 0.02f * hi);
+}
+
+TEST(LoadModel, FoxClipsAndUnindexedMesh) {
+  std::string path = gltf_dir() + "/Fox.glb";
+  REQUIRE_SHARED(path);
+  auto r = load_model(path);
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  const Model& m = *r;
+  EXPECT_EQ(m.palette.size(), 24u);
+  ASSERT_EQ(m.clips.size(), 3u);
+  EXPECT_EQ(m.find_clip("Survey"), 0);
+  EXPECT_EQ(m.find_clip("Walk"), 1);
+  EXPECT_EQ(m.find_clip("Run"), 2);
+  EXPECT_EQ(m.lods[0].indices.size(), m.lods[0].vertices.size());
+  for (const Vertex& v : m.lods[0].vertices) EXPECT_NEAR(glm::length(v.normal), 1.0f, 1e-4f);
+  EXPECT_EQ(m.textures.size(), 1u);
+}
+
+TEST(LoadModel, PosturePairsOverride) {
+  std::string path = gltf_dir() + "/CesiumMan.glb";
+  REQUIRE_SHARED(path);
+  auto r = load_model(path);
+  ASSERT_TRUE(r.ok());
+  Model& m = *r;
+  std::vector<std::pair<std::string, std::string>> bad = {{"nope", "Skeleton_neck_joint_1"}};
+  auto s = m.set_posture_pairs(bad);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().reason.find("nope"), std::string::npos);
+  int a = m.palette[0].node, b = m.palette[5].node;
+  std::vector<std::pair<std::string, std::string>> good = {{m.nodes[a].name, m.nodes[b].name}};
+  ASSERT_TRUE(m.set_posture_pairs(good).ok());
+  EXPECT_EQ(m.posture_pairs()[0].a.node, a);
+  EXPECT_EQ(m.posture_pairs()[3].b.node, b);
+}
+
+// Every malformed file of the Khronos validator's suite: loading never crashes; files whose
+// errors matter to a skinned-animation loader are rejected with a message naming the file.
+TEST(LoadModel, ValidatorSuiteRejectedCleanly) {
+  fs::path root = fs::path(BB_SHARED_DATA_DIR) / "bad-gltf" / "glTF-Validator";
+  REQUIRE_SHARED(root);
+  const std::set<std::string> must_reject = {
+      "INVALID_JSON", "GLB_INVALID_MAGIC", "GLB_INVALID_VERSION", "GLB_LENGTH_TOO_SMALL", "GLB_LENGTH_MISMATCH",
+      "GLB_CHUNK_TOO_BIG", "GLB_UNEXPECTED_END_OF_HEADER", "GLB_UNEXPECTED_END_OF_CHUNK_HEADER",
+      "GLB_UNEXPECTED_END_OF_CHUNK_DATA", "NODE_LOOP", "NODE_PARENT_OVERRIDE", "ACCESSOR_TOO_LONG",
+      "BUFFER_VIEW_TOO_LONG", "ACCESSOR_INDEX_OOB", "ACCESSOR_JOINTS_INDEX_OOB", "INVALID_IBM_ACCESSOR_COUNT",
+      "ACCESSOR_ANIMATION_INPUT_NON_INCREASING", "ACCESSOR_ANIMATION_INPUT_NEGATIVE",
+      "ANIMATION_SAMPLER_OUTPUT_ACCESSOR_INVALID_COUNT", "ACCESSOR_INVALID_FLOAT"};
+  int files = 0, with_errors = 0, rejected = 0, must = 0;
+  for (const auto& e : fs::recursive_directory_iterator(root)) {
+    std::string p = e.path().string();
+    if (!(e.path().extension() == ".gltf" || e.path().extension() == ".glb")) continue;
+    ++files;
+    std::ifstream rep(p + ".report.json");
+    std::stringstream ss;
+    ss << rep.rdbuf();
+    std::string report = ss.str();
+    auto pos = report.find("\"numErrors\"");
+    int num_errors = pos == std::string::npos ? 0 : std::atoi(report.c_str() + report.find(':', pos) + 1);
+    bool must_fail = false;
+    std::string code;
+    for (const auto& c : must_reject)
+      if (num_errors > 0 && report.find("\"" + c + "\"") != std::string::npos) must_fail = true, code = c;
+    auto r = load_model(p);  // must not crash, whatever the file
+    if (num_errors > 0) ++with_errors;
+    if (!r.ok()) {
+      ++rejected;
+      EXPECT_EQ(r.error().file, p);
+      EXPECT_FALSE(r.error().reason.empty());
+    }
+    if (must_fail) {
+      ++must;
+      EXPECT_FALSE(r.ok()) << p << " (" << code << ") was accepted";
+    }
+  }
+  std::cout << "validator suite: " << files << " files, " << with_errors << " with errors, " << rejected
+            << " rejected, " << must << " that must be rejected\n";
+  EXPECT_GT(files, 150);
+}
+
+}  // namespace
+}  // namespace bb::runtime
