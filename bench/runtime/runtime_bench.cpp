@@ -1,0 +1,110 @@
+// Per-character CPU cost of the frame update (animation state, culling, both cache tests, LOD and
+// window choice) at 10,000 characters of CesiumMan: the paper's "cost per character per frame".
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+
+#include <benchmark/benchmark.h>
+
+#include "bb/runtime/crowd.h"
+#include "bb/runtime/model.h"
+
+namespace {
+
+using namespace bb::runtime;
+
+const Model& model() {
+  static std::unique_ptr<Model> m = [] {
+    auto r = load_model(std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb");
+    if (!r) {
+      std::fprintf(stderr, "%s\n", r.error().message().c_str());
+      std::exit(1);
+    }
+    return std::make_unique<Model>(std::move(*r));
+  }();
+  return *m;
+}
+
+// n characters on a grid in front of the camera, all in view, walking at various speeds.
+Crowd make_crowd(int n) {
+  Crowd c(model());
+  int side = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(n))));
+  for (int i = 0; i < n; ++i)
+    c.add(Character{glm::vec3((i % side - side / 2) * 1.5f, 0.0f, -(i / side) * 1.5f), 0.3f * i, 1.0f, 0,
+                    0.37f * i, 0.8f + 0.4f * ((i * 7919) % 100) / 100.0f});
+  return c;
+}
+
+SceneCamera camera(int n) {
+  SceneCamera cam;
+  float side = std::ceil(std::sqrt(static_cast<float>(n))) * 1.5f;
+  cam.eye = {0.0f, side * 0.8f, side * 0.9f};
+  cam.target = {0.0f, 0.0f, -side * 0.4f};
+  cam.far_plane = 10.0f * side + 100.0f;
+  return cam;
+}
+
+// Characters that need no new snapshot: still time and camera, cache warm.
+void BM_UpdateNoSnapshot(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  Crowd crowd = make_crowd(n);
+  FramePlanner planner(model(), ImpostorConfig{.max_pages = 256});
+  SceneCamera cam = camera(n);
+  planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+  int snaps = 0;
+  for (auto _ : state) {
+    const FramePlan& p = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+    snaps += p.stats.snapshots;
+    benchmark::DoNotOptimize(p.billboards.data());
+  }
+  state.SetItemsProcessed(state.iterations() * n);
+  state.counters["ns_per_character"] =
+      benchmark::Counter(static_cast<double>(n) * state.iterations(), benchmark::Counter::kIsRate | benchmark::Counter::kInvert) ;
+  state.counters["snapshots"] = snaps;
+}
+BENCHMARK(BM_UpdateNoSnapshot)->Arg(10000)->Unit(benchmark::kMicrosecond);
+
+// Walking at 60 Hz with the paper's thresholds (posture 40 %, view 8 degrees); a few refresh.
+void BM_UpdateWalking(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  Crowd crowd = make_crowd(n);
+  ImpostorConfig cfg{.max_pages = 256};
+  FramePlanner planner(model(), cfg);
+  SceneCamera cam = camera(n);
+  float t = 0.0f;
+  double refresh = 0;
+  for (auto _ : state) {
+    t += 1.0f / 60.0f;
+    const FramePlan& p = planner.plan(crowd, cam, t, RenderMode::kImpostor);
+    refresh += p.stats.refresh_fraction;
+    benchmark::DoNotOptimize(p.billboards.data());
+  }
+  state.SetItemsProcessed(state.iterations() * n);
+  state.counters["ns_per_character"] =
+      benchmark::Counter(static_cast<double>(n) * state.iterations(), benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["refresh_fraction"] = refresh / static_cast<double>(state.iterations());
+}
+BENCHMARK(BM_UpdateWalking)->Arg(10000)->Unit(benchmark::kMicrosecond);
+
+// The geometry path's CPU work: animation state, culling, LOD.
+void BM_UpdateGeometry(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  Crowd crowd = make_crowd(n);
+  FramePlanner planner(model());
+  SceneCamera cam = camera(n);
+  float t = 0.0f;
+  for (auto _ : state) {
+    t += 1.0f / 60.0f;
+    const FramePlan& p = planner.plan(crowd, cam, t, RenderMode::kGeometry);
+    benchmark::DoNotOptimize(p.geometry.data());
+  }
+  state.SetItemsProcessed(state.iterations() * n);
+  state.counters["ns_per_character"] =
+      benchmark::Counter(static_cast<double>(n) * state.iterations(), benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_UpdateGeometry)->Arg(10000)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();

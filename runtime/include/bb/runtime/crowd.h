@@ -1,0 +1,142 @@
+// Characters of one model and the per-frame decisions (no GL): animation time, culling, geometry
+// LOD or impostor window, the two cache tests, atlas windows. The GL Renderer draws a FramePlan.
+// After the first frames the planner allocates nothing.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "bb/runtime/impostor.h"
+#include "bb/runtime/model.h"
+
+namespace bb::runtime {
+
+// One character: where it stands and what it plays. Its local clip time at scene time t is
+// clip_time(phase + speed * t, duration, loop = true).
+struct Character {
+  glm::vec3 position{0.0f};  // world, metres (the model's origin goes here)
+  float yaw = 0.0f;          // radians about +Y; 0 faces +Z
+  float scale = 1.0f;        // uniform
+  int clip = 0;              // index into Model::clips (ignored when the model has none)
+  float phase = 0.0f;        // seconds added to the scene time
+  float speed = 1.0f;        // playback rate
+};
+
+class Crowd {
+ public:
+  explicit Crowd(const Model& model) : model_(&model) {}
+  const Model& model() const { return *model_; }
+  int add(const Character& c) { characters_.push_back(c); return static_cast<int>(characters_.size()) - 1; }
+  void reserve(std::size_t n) { characters_.reserve(n); }
+  void clear() { characters_.clear(); }
+  std::size_t size() const { return characters_.size(); }
+  Character& operator[](std::size_t i) { return characters_[i]; }
+  const Character& operator[](std::size_t i) const { return characters_[i]; }
+  std::vector<Character>& characters() { return characters_; }
+  const std::vector<Character>& characters() const { return characters_; }
+
+ private:
+  const Model* model_;
+  std::vector<Character> characters_;
+};
+
+enum class RenderMode {
+  kGeometry,  // every visible character as skinned geometry (the baseline)
+  kImpostor,  // every visible character as an impostor
+  kAuto,      // impostors, but characters bigger on screen than the switch size stay geometry
+};
+
+struct ImpostorConfig {
+  WindowSizes windows;            // 256, 128, 64, 32 by default (section 4.3)
+  int page_size = 1024;           // atlas page, pixels (square)
+  int max_pages = 32;             // when all are full, characters fall back to geometry
+  CacheConfig cache;              // section 5
+  // kAuto: a character whose on-screen diameter exceeds windows.size[0] * geometry_switch
+  // pixels stays geometry (1.0: where a texel of the largest window would cover a pixel).
+  float geometry_switch = 1.0f;
+  float snapshot_distance = 0.0f; // D of section 4.2; <= 0: 2 * radius
+};
+
+// Per-instance data the GPU reads (16-byte aligned, plain floats).
+struct InstanceGpu {
+  glm::vec4 position_yaw;  // world position xyz, yaw
+  glm::vec4 anim;          // scale, row of frame f0, row of frame f1, blend f0 -> f1
+};
+struct BillboardGpu {
+  glm::vec4 ta_half;       // world Ta xyz, half size (metres)
+  glm::vec4 uv_rect;       // u0, v0, u1, v1 of the window in its page
+  glm::vec4 layer;         // page (x); y, z, w unused
+};
+struct SnapshotGpu {
+  InstanceGpu instance;
+  glm::vec4 ho_half;       // Ho xyz, half size
+  glm::vec4 uo_dist;       // Uo xyz, D
+  glm::vec4 vo;            // Vo xyz, unused
+  glm::vec4 ta;            // Ta xyz, unused
+  glm::vec4 window;        // window rect in page NDC: centre x, centre y, half extent, unused
+};
+
+struct FrameStats {
+  int characters = 0;
+  int culled = 0;            // outside the view frustum
+  int geometry = 0;          // drawn as skinned geometry
+  int impostors = 0;         // drawn as impostors
+  int snapshots = 0;         // impostors refreshed this frame
+  float refresh_fraction = 0;  // snapshots / impostors (0 when no impostor)
+  int atlas_fallbacks = 0;   // wanted an impostor, atlas full: drawn as geometry
+  int posture_refreshes = 0, view_refreshes = 0, window_refreshes = 0, new_snapshots = 0;
+  std::array<int, 8> geometry_per_lod{};  // characters per LOD level
+  std::array<int, 8> impostors_per_window{};
+  std::size_t geometry_triangles = 0;  // drawn this frame by the geometry path
+  std::size_t snapshot_triangles = 0;  // drawn into the atlas this frame
+  int atlas_pages_used = 0, atlas_pages = 0, atlas_windows_used = 0;
+  float atlas_pixel_use = 0;           // fraction of the used pages' pixels in windows
+};
+
+// What to draw this frame. Geometry instances are grouped by LOD level, snapshots by atlas page.
+struct FramePlan {
+  std::vector<std::vector<InstanceGpu>> geometry;  // [lod] -> instances
+  std::vector<BillboardGpu> billboards;
+  std::vector<std::vector<SnapshotGpu>> snapshots;  // [page] -> snapshots into that page
+  std::vector<int> page_lod;                        // [page] -> LOD used for its snapshots
+  SceneCamera camera;
+  FrameStats stats;
+};
+
+class FramePlanner {
+ public:
+  FramePlanner(const Model& model, const ImpostorConfig& config = {});
+
+  // Plans one frame of `crowd` (of this planner's model) seen by `camera` at scene time `time`
+  // (seconds). kGeometry and kImpostor/kAuto frames may be interleaved: geometry frames leave the
+  // impostor cache untouched. The returned plan stays valid until the next call.
+  const FramePlan& plan(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode);
+
+  // Forces a new snapshot of every impostor at the next impostor frame.
+  void invalidate();
+  ImpostorConfig& config() { return config_; }
+  const ImpostorConfig& config() const { return config_; }
+  const Model& model() const { return *model_; }
+  const AtlasAllocator& atlas() const { return atlas_; }
+  // LOD level the geometry path uses for an on-screen diameter of `pixels` in a viewport
+  // `viewport_height` pixels high (MSFT_screencoverage: diameter / height >= coverage).
+  int lod_for(float pixels, int viewport_height) const;
+
+ private:
+  struct CacheState {
+    std::array<float, 4> posture{};
+    glm::mat3 view{1.0f};
+    AtlasWindow window;
+    bool valid = false;
+  };
+  const Model* model_;
+  ImpostorConfig config_;
+  AtlasAllocator atlas_;
+  std::vector<CacheState> cache_;
+  FramePlan plan_;
+};
+
+}  // namespace bb::runtime

@@ -1,0 +1,150 @@
+// The impostor logic of the paper as plain C++ (no GL): the scene camera, the orthographic
+// snapshot camera (section 4.2), the two cache tests (section 5), the texture-window size
+// (section 4.3) and the allocator of windows in shared atlas pages.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace bb::runtime {
+
+// The scene ("subjective") camera: perspective, looking from `eye` at `target`.
+struct SceneCamera {
+  glm::vec3 eye{0.0f, 1.6f, 10.0f};
+  glm::vec3 target{0.0f, 1.0f, 0.0f};
+  glm::vec3 up{0.0f, 1.0f, 0.0f};   // Us, need not be unit
+  float fov_y = 0.7854f;            // radians, vertical field of view
+  int width = 1280, height = 1024;  // viewport, pixels
+  float near_plane = 0.1f, far_plane = 1000.0f;  // metres
+
+  glm::mat4 view() const;
+  glm::mat4 projection() const;
+  // Pixels per metre at distance `depth` (metres along the viewing direction).
+  float pixels_per_metre(float depth) const;
+};
+
+// Section 4.2: Vo = unit(Ta - eye), Ho = Vo x Us, Uo = Ho x Vo, To = Ta - D Vo. The frustum is a
+// square of half size `half_size` (the model's snapshot radius) around Ta, depth Ta +- half_size.
+struct SnapshotCamera {
+  glm::vec3 ta{0.0f};        // world
+  glm::vec3 vo{0.0f, 0.0f, -1.0f}, ho{1.0f, 0.0f, 0.0f}, uo{0.0f, 1.0f, 0.0f};  // unit, world
+  glm::vec3 to{0.0f};        // camera position, world
+  float half_size = 1.0f;    // metres
+  float distance = 2.0f;     // D, metres (does not change the picture)
+
+  glm::mat4 view() const;        // world -> camera (right-handed, looks along vo)
+  glm::mat4 projection() const;  // orthographic, [-h, h]^2, near D - h, far D + h
+};
+
+// Returns the snapshot camera; `distance` <= 0 uses 2 * half_size. When Vo is parallel to Us
+// the frame falls back to a horizontal Ho so the result is always a right-handed frame.
+SnapshotCamera make_snapshot_camera(const glm::vec3& ta, const glm::vec3& eye, const glm::vec3& up,
+                                    float half_size, float distance = 0.0f);
+
+// Section 5.2: the "view matrix" of a character = the snapshot camera's frame expressed in the
+// character's frame (camera x character): columns Ho, Uo, -Vo rotated by the inverse of the
+// character's rotation (a yaw about +Y, radians).
+glm::mat3 view_rotation(const SnapshotCamera& cam, float yaw);
+
+// Angle in radians of the rotation between two rotation matrices (axis-angle of A^T B).
+float rotation_angle(const glm::mat3& a, const glm::mat3& b);
+// Same test without acos: (trace(A^T B) - 1) / 2, the cosine of that angle.
+inline float rotation_cosine(const glm::mat3& a, const glm::mat3& b) {
+  float t = glm::dot(a[0], b[0]) + glm::dot(a[1], b[1]) + glm::dot(a[2], b[2]);
+  return 0.5f * (t - 1.0f);
+}
+
+// Section 5: when a snapshot is stale.
+struct CacheConfig {
+  bool posture_test = true;
+  // Relative change of any of the four squared joint-pair distances (0.4 = 40 %).
+  float posture_threshold = 0.4f;
+  bool view_test = true;
+  float view_threshold_deg = 8.0f;  // degrees
+  // Optional distance weighting of both thresholds: threshold * max(1, distance / reference).
+  bool distance_weighting = false;
+  float reference_distance = 10.0f;  // metres
+};
+
+// Multiplier of the thresholds for a character `distance` metres from the eye.
+inline float distance_weight(const CacheConfig& c, float distance) {
+  if (!c.distance_weighting || !(c.reference_distance > 0.0f)) return 1.0f;
+  float w = distance / c.reference_distance;
+  return w > 1.0f ? w : 1.0f;
+}
+
+// Section 5.1: true when any pair's squared distance changed by more than `threshold` relative
+// to its value at the last snapshot (a stored value of 0 compares absolutely, in m^2).
+inline bool posture_changed(const std::array<float, 4>& stored, const std::array<float, 4>& now,
+                            float threshold) {
+  bool changed = false;
+  for (int k = 0; k < 4; ++k) {
+    float d = now[k] - stored[k];
+    d = d < 0.0f ? -d : d;
+    float ref = stored[k] > 0.0f ? stored[k] : 1.0f;
+    changed |= d > threshold * ref;
+  }
+  return changed;
+}
+
+// Section 4.3: window sizes, largest first (pixels, powers of two are usual but not required).
+struct WindowSizes {
+  std::array<int, 8> size{256, 128, 64, 32};
+  int count = 4;
+};
+
+// Index of the smallest window that still holds `pixels` (the character's on-screen diameter);
+// 0 (the largest) when none does.
+int choose_window(const WindowSizes& sizes, float pixels);
+
+// A window in an atlas page. Pages are square, `page_size` pixels; each page holds windows of one
+// size class on a regular grid, so allocation and release are O(1) and pages are shared by many
+// characters.
+struct AtlasWindow {
+  std::int32_t page = -1;  // -1: none
+  std::int32_t x = 0, y = 0;  // pixels, lower-left corner in the page (GL convention)
+  std::int32_t size = 0;      // pixels
+  std::int32_t size_class = 0;
+  std::int32_t slot = 0;      // index inside the page
+  bool valid() const { return page >= 0; }
+};
+
+class AtlasAllocator {
+ public:
+  // `page_size` >= the largest window; `max_pages` >= 1.
+  AtlasAllocator(int page_size, int max_pages, const WindowSizes& sizes);
+
+  // A free window of class `size_class`; nullopt when every page is in use and full.
+  std::optional<AtlasWindow> allocate(int size_class);
+  void release(const AtlasWindow& w);  // `w` must come from allocate and not be released twice
+  void clear();
+
+  int page_size() const { return page_size_; }
+  int max_pages() const { return static_cast<int>(pages_.size()); }
+  int pages_used() const;
+  int windows_used() const { return windows_used_; }
+  // Fraction of the used pages' pixels covered by windows in use.
+  float pixel_use() const;
+  // Class of page `p`, or -1 when it is unused.
+  int page_class(int p) const { return pages_[p].size_class; }
+
+ private:
+  struct Page {
+    int size_class = -1;  // -1: empty
+    int per_row = 0;
+    std::vector<std::int32_t> free_slots;
+    int used = 0;
+  };
+  int page_size_;
+  WindowSizes sizes_;
+  std::vector<Page> pages_;
+  std::array<std::vector<int>, 8> open_pages_;  // per class: pages with a free slot
+  int windows_used_ = 0;
+};
+
+}  // namespace bb::runtime

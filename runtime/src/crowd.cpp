@@ -1,0 +1,184 @@
+#include "bb/runtime/crowd.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "bb/runtime/animation.h"
+
+namespace bb::runtime {
+
+FramePlanner::FramePlanner(const Model& model, const ImpostorConfig& config)
+    : model_(&model), config_(config), atlas_(config.page_size, config.max_pages, config.windows) {
+  plan_.geometry.resize(model.lods.size());
+  plan_.snapshots.resize(static_cast<std::size_t>(atlas_.max_pages()));
+  plan_.page_lod.assign(static_cast<std::size_t>(atlas_.max_pages()), 0);
+}
+
+void FramePlanner::invalidate() {
+  for (auto& c : cache_) c.valid = false;
+}
+
+int FramePlanner::lod_for(float pixels, int viewport_height) const {
+  const float coverage = pixels / static_cast<float>(std::max(1, viewport_height));
+  const int n = static_cast<int>(model_->lods.size());
+  for (int l = 0; l < n - 1; ++l)
+    if (coverage >= model_->lods[l].screen_coverage) return l;
+  return n - 1;
+}
+
+const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode) {
+  const Model& m = *model_;
+  const std::size_t n = crowd.size();
+  if (cache_.size() < n) cache_.resize(n);
+  if (cache_.size() > n) {  // characters removed: give their windows back
+    for (std::size_t i = n; i < cache_.size(); ++i)
+      if (cache_[i].window.valid()) atlas_.release(cache_[i].window);
+    cache_.resize(n);
+  }
+  for (auto& g : plan_.geometry) g.clear();
+  for (auto& s : plan_.snapshots) s.clear();
+  plan_.billboards.clear();
+  if (plan_.billboards.capacity() < n) plan_.billboards.reserve(n);
+  plan_.camera = camera;
+  FrameStats st;
+  st.characters = static_cast<int>(n);
+
+  // Frustum planes (world) from the view-projection matrix, for the snapshot sphere.
+  const glm::mat4 vp = camera.projection() * camera.view();
+  std::array<glm::vec4, 6> planes;
+  for (int i = 0; i < 3; ++i) {
+    planes[2 * i] = glm::vec4(vp[0][3] + vp[0][i], vp[1][3] + vp[1][i], vp[2][3] + vp[2][i], vp[3][3] + vp[3][i]);
+    planes[2 * i + 1] = glm::vec4(vp[0][3] - vp[0][i], vp[1][3] - vp[1][i], vp[2][3] - vp[2][i], vp[3][3] - vp[3][i]);
+  }
+  for (auto& p : planes) p /= glm::length(glm::vec3(p));
+  const glm::vec3 fwd = glm::normalize(camera.target - camera.eye);
+  const float ppm1 = camera.pixels_per_metre(1.0f);
+  const bool impostor_mode = mode != RenderMode::kGeometry;
+  const CacheConfig& cc = config_.cache;
+  const float cos_view = std::cos(glm::radians(cc.view_threshold_deg));
+  const float switch_px = static_cast<float>(config_.windows.size[0]) * config_.geometry_switch;
+  const auto baked = m.baked_clips();
+  const float page = static_cast<float>(atlas_.page_size());
+  const int lods = static_cast<int>(m.lods.size());
+  // LOD of each window class (section 4.3: the snapshot uses the level that matches the window).
+  std::array<int, 8> window_lod{};
+  for (int w = 0; w < config_.windows.count; ++w) window_lod[w] = lod_for(static_cast<float>(config_.windows.size[w]), camera.height);
+
+  for (std::size_t i = 0; i < n; ++i) {
+    const Character& ch = crowd[i];
+    const float radius = m.radius * ch.scale;
+    const float cy = std::cos(ch.yaw), sy = std::sin(ch.yaw);
+    const glm::vec3 ta_local = m.ta * ch.scale;
+    const glm::vec3 ta = ch.position + glm::vec3(cy * ta_local.x + sy * ta_local.z, ta_local.y, -sy * ta_local.x + cy * ta_local.z);
+    bool outside = false;
+    for (const auto& p : planes) outside |= glm::dot(glm::vec3(p), ta) + p.w < -radius;
+    if (outside) {
+      ++st.culled;
+      continue;
+    }
+    // Animation state: baked frames around the character's clip time.
+    const int clip = m.clips.empty() ? 0 : std::clamp(ch.clip, 0, static_cast<int>(m.clips.size()) - 1);
+    const BakedClip& bc = baked[clip];
+    const float t = clip_time(ch.phase + ch.speed * time, m.clip_duration(clip), true);
+    const float fx = t * bc.rate;
+    const int f0 = std::min(static_cast<int>(fx), bc.frame_count - 1);
+    const int f1 = std::min(f0 + 1, bc.frame_count - 1);
+    const float blend = f1 > f0 ? fx - static_cast<float>(f0) : 0.0f;
+    InstanceGpu inst{glm::vec4(ch.position, ch.yaw),
+                     glm::vec4(ch.scale, static_cast<float>(bc.first_row + f0), static_cast<float>(bc.first_row + f1), blend)};
+    const float depth = glm::dot(ta - camera.eye, fwd);
+    const float pixels = 2.0f * radius * ppm1 / std::max(depth, 1e-3f);
+
+    bool as_geometry = !impostor_mode || (mode == RenderMode::kAuto && pixels > switch_px);
+    if (!as_geometry) {
+      CacheState& cs = cache_[i];
+      const int wclass = choose_window(config_.windows, pixels);
+      bool refresh = !cs.valid;
+      if (!refresh && cs.window.size_class != wclass) {
+        refresh = true;
+        ++st.window_refreshes;
+      }
+      if (cs.window.valid() && cs.window.size_class != wclass) {
+        atlas_.release(cs.window);
+        cs.window = AtlasWindow{};
+      }
+      if (!cs.window.valid()) {
+        auto w = atlas_.allocate(wclass);
+        if (!w) {
+          ++st.atlas_fallbacks;
+          cs.valid = false;
+          as_geometry = true;
+        } else {
+          cs.window = *w;
+          refresh = true;
+        }
+      }
+      if (!as_geometry) {
+        const SnapshotCamera sc = make_snapshot_camera(ta, camera.eye, camera.up, radius,
+                                                       config_.snapshot_distance > 0 ? config_.snapshot_distance * ch.scale : 0.0f);
+        const glm::mat3 view = view_rotation(sc, ch.yaw);
+        // Posture distances of the current frame (squared, model space, scaled).
+        std::array<float, 4> posture;
+        const auto& p0 = bc.posture[f0];
+        const auto& p1 = bc.posture[f1];
+        for (int k = 0; k < 4; ++k) posture[k] = p0[k] + (p1[k] - p0[k]) * blend;
+        if (!refresh) {
+          const float w = distance_weight(cc, glm::distance(ta, camera.eye));
+          if (cc.view_test) {
+            const float cthr = w == 1.0f ? cos_view : std::cos(std::min(glm::radians(cc.view_threshold_deg) * w, 3.14159265f));
+            if (rotation_cosine(cs.view, view) < cthr) {
+              refresh = true;
+              ++st.view_refreshes;
+            }
+          }
+          if (cc.posture_test && !refresh && posture_changed(cs.posture, posture, cc.posture_threshold * w)) {
+            refresh = true;
+            ++st.posture_refreshes;
+          }
+        } else if (!cs.valid) {
+          ++st.new_snapshots;
+        }
+        const AtlasWindow& win = cs.window;
+        if (refresh) {
+          cs.valid = true;
+          cs.view = view;
+          cs.posture = posture;
+          SnapshotGpu s;
+          s.instance = inst;
+          s.ho_half = glm::vec4(sc.ho, sc.half_size);
+          s.uo_dist = glm::vec4(sc.uo, sc.distance);
+          s.vo = glm::vec4(sc.vo, 0.0f);
+          s.ta = glm::vec4(ta, 0.0f);
+          const float half = static_cast<float>(win.size) / page;  // NDC half extent = size / page
+          s.window = glm::vec4(-1.0f + (2.0f * win.x + win.size) / page, -1.0f + (2.0f * win.y + win.size) / page, half, 0.0f);
+          plan_.snapshots[win.page].push_back(s);
+          plan_.page_lod[win.page] = window_lod[win.size_class];
+          ++st.snapshots;
+          st.snapshot_triangles += m.lods[window_lod[win.size_class]].triangle_count();
+        }
+        plan_.billboards.push_back(BillboardGpu{
+            glm::vec4(ta, radius),
+            glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
+            glm::vec4(static_cast<float>(win.page), 0.0f, 0.0f, 0.0f)});
+        ++st.impostors;
+        ++st.impostors_per_window[win.size_class];
+      }
+    }
+    if (as_geometry) {
+      const int lod = std::min(lod_for(pixels, camera.height), lods - 1);
+      plan_.geometry[lod].push_back(inst);
+      ++st.geometry;
+      ++st.geometry_per_lod[std::min(lod, 7)];
+      st.geometry_triangles += m.lods[lod].triangle_count();
+    }
+  }
+  st.refresh_fraction = st.impostors > 0 ? static_cast<float>(st.snapshots) / static_cast<float>(st.impostors) : 0.0f;
+  st.atlas_pages = atlas_.max_pages();
+  st.atlas_pages_used = atlas_.pages_used();
+  st.atlas_windows_used = atlas_.windows_used();
+  st.atlas_pixel_use = atlas_.pixel_use();
+  plan_.stats = st;
+  return plan_;
+}
+
+}  // namespace bb::runtime

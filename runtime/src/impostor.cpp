@@ -1,0 +1,160 @@
+#include "bb/runtime/impostor.h"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+namespace bb::runtime {
+
+glm::mat4 SceneCamera::view() const { return glm::lookAt(eye, target, up); }
+
+glm::mat4 SceneCamera::projection() const {
+  return glm::perspective(fov_y, static_cast<float>(width) / static_cast<float>(std::max(1, height)), near_plane,
+                          far_plane);
+}
+
+float SceneCamera::pixels_per_metre(float depth) const {
+  return 0.5f * static_cast<float>(height) / (std::tan(0.5f * fov_y) * std::max(depth, 1e-4f));
+}
+
+glm::mat4 SnapshotCamera::view() const {
+  // Rows: Ho, Uo, -Vo (camera looks down -Z).
+  glm::mat4 v(1.0f);
+  v[0][0] = ho.x; v[1][0] = ho.y; v[2][0] = ho.z;
+  v[0][1] = uo.x; v[1][1] = uo.y; v[2][1] = uo.z;
+  v[0][2] = -vo.x; v[1][2] = -vo.y; v[2][2] = -vo.z;
+  v[3][0] = -glm::dot(ho, to);
+  v[3][1] = -glm::dot(uo, to);
+  v[3][2] = glm::dot(vo, to);
+  return v;
+}
+
+glm::mat4 SnapshotCamera::projection() const {
+  return glm::ortho(-half_size, half_size, -half_size, half_size, distance - half_size, distance + half_size);
+}
+
+SnapshotCamera make_snapshot_camera(const glm::vec3& ta, const glm::vec3& eye, const glm::vec3& up, float half_size,
+                                    float distance) {
+  SnapshotCamera c;
+  c.ta = ta;
+  c.half_size = half_size;
+  c.distance = distance > 0.0f ? distance : 2.0f * half_size;
+  glm::vec3 v = ta - eye;
+  float l = glm::length(v);
+  c.vo = l > 0.0f ? v / l : glm::vec3(0, 0, -1);
+  glm::vec3 h = glm::cross(c.vo, up);
+  float hl = glm::length(h);
+  if (!(hl > 1e-6f)) {  // looking along the up vector: any horizontal right vector will do
+    h = glm::cross(c.vo, glm::vec3(0, 0, 1));
+    if (glm::length(h) < 1e-6f) h = glm::vec3(1, 0, 0);
+    hl = glm::length(h);
+  }
+  c.ho = h / hl;
+  c.uo = glm::cross(c.ho, c.vo);
+  c.to = ta - c.distance * c.vo;
+  return c;
+}
+
+glm::mat3 view_rotation(const SnapshotCamera& cam, float yaw) {
+  // Character rotation R = rotY(yaw); R^T applied to each column.
+  const float c = std::cos(yaw), s = std::sin(yaw);
+  auto inv = [&](const glm::vec3& v) { return glm::vec3(c * v.x - s * v.z, v.y, s * v.x + c * v.z); };
+  return glm::mat3(inv(cam.ho), inv(cam.uo), inv(-cam.vo));
+}
+
+float rotation_angle(const glm::mat3& a, const glm::mat3& b) {
+  return std::acos(std::clamp(rotation_cosine(a, b), -1.0f, 1.0f));
+}
+
+int choose_window(const WindowSizes& sizes, float pixels) {
+  int best = 0;
+  for (int i = 0; i < sizes.count; ++i)
+    if (static_cast<float>(sizes.size[i]) >= pixels) best = i;  // sizes decrease with i
+  return best;
+}
+
+AtlasAllocator::AtlasAllocator(int page_size, int max_pages, const WindowSizes& sizes)
+    : page_size_(page_size), sizes_(sizes), pages_(static_cast<std::size_t>(std::max(1, max_pages))) {
+  assert(sizes.count >= 1 && sizes.count <= 8 && sizes.size[0] <= page_size);
+  for (auto& v : open_pages_) v.reserve(pages_.size());
+}
+
+std::optional<AtlasWindow> AtlasAllocator::allocate(int size_class) {
+  assert(size_class >= 0 && size_class < sizes_.count);
+  auto& open = open_pages_[size_class];
+  int p = -1;
+  if (!open.empty()) {
+    p = open.back();
+  } else {
+    for (std::size_t i = 0; i < pages_.size(); ++i)
+      if (pages_[i].size_class < 0) {
+        p = static_cast<int>(i);
+        break;
+      }
+    if (p < 0) return std::nullopt;
+    Page& pg = pages_[p];
+    pg.size_class = size_class;
+    pg.per_row = page_size_ / sizes_.size[size_class];
+    const int n = pg.per_row * pg.per_row;
+    pg.free_slots.resize(n);
+    for (int i = 0; i < n; ++i) pg.free_slots[i] = n - 1 - i;  // hand out slot 0 first
+    pg.used = 0;
+    open.push_back(p);
+  }
+  Page& pg = pages_[p];
+  const std::int32_t slot = pg.free_slots.back();
+  pg.free_slots.pop_back();
+  ++pg.used;
+  ++windows_used_;
+  if (pg.free_slots.empty()) open.erase(std::find(open.begin(), open.end(), p));
+  AtlasWindow w;
+  w.page = p;
+  w.size = sizes_.size[size_class];
+  w.size_class = size_class;
+  w.slot = slot;
+  w.x = (slot % pg.per_row) * w.size;
+  w.y = (slot / pg.per_row) * w.size;
+  return w;
+}
+
+void AtlasAllocator::release(const AtlasWindow& w) {
+  assert(w.valid() && w.page < static_cast<int>(pages_.size()));
+  Page& pg = pages_[w.page];
+  assert(pg.size_class == w.size_class);
+  auto& open = open_pages_[w.size_class];
+  if (pg.free_slots.empty()) open.push_back(w.page);
+  pg.free_slots.push_back(w.slot);
+  --pg.used;
+  --windows_used_;
+  if (pg.used == 0) {  // give the page back to every class
+    pg.size_class = -1;
+    pg.free_slots.clear();
+    open.erase(std::find(open.begin(), open.end(), w.page));
+  }
+}
+
+void AtlasAllocator::clear() {
+  for (auto& p : pages_) p = Page{};
+  for (auto& v : open_pages_) v.clear();
+  windows_used_ = 0;
+}
+
+int AtlasAllocator::pages_used() const {
+  int n = 0;
+  for (const auto& p : pages_) n += p.size_class >= 0;
+  return n;
+}
+
+float AtlasAllocator::pixel_use() const {
+  double used = 0, total = 0;
+  for (const auto& p : pages_) {
+    if (p.size_class < 0) continue;
+    total += static_cast<double>(page_size_) * page_size_;
+    used += static_cast<double>(p.used) * sizes_.size[p.size_class] * sizes_.size[p.size_class];
+  }
+  return total > 0 ? static_cast<float>(used / total) : 0.0f;
+}
+
+}  // namespace bb::runtime

@@ -1,0 +1,272 @@
+// The impostor logic without GL: snapshot camera, cache tests, window choice, atlas packing and
+// the frame planner's decisions.
+#include <cmath>
+#include <filesystem>
+#include <set>
+#include <tuple>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <gtest/gtest.h>
+
+#include "bb/runtime/crowd.h"
+#include "bb/runtime/impostor.h"
+
+namespace bb::runtime {
+namespace {
+
+void expect_vec3(glm::vec3 a, glm::vec3 b, float eps = 1e-6f) {
+  EXPECT_NEAR(a.x, b.x, eps);
+  EXPECT_NEAR(a.y, b.y, eps);
+  EXPECT_NEAR(a.z, b.z, eps);
+}
+
+TEST(SnapshotCamera, FrameFromEyeAndUp) {
+  auto c = make_snapshot_camera({0, 1, 0}, {0, 1, 10}, {0, 1, 0}, 1.0f, 3.0f);
+  expect_vec3(c.vo, {0, 0, -1});
+  expect_vec3(c.ho, {1, 0, 0});
+  expect_vec3(c.uo, {0, 1, 0});
+  expect_vec3(c.to, {0, 1, 3});
+  // Seen from the +X side: Vo = -X, Ho = Vo x Us = -Z, Uo = Ho x Vo = +Y.
+  auto s = make_snapshot_camera({0, 1, 0}, {10, 1, 0}, {0, 2, 0}, 1.0f, 3.0f);
+  expect_vec3(s.vo, {-1, 0, 0});
+  expect_vec3(s.ho, {0, 0, -1});
+  expect_vec3(s.uo, {0, 1, 0});
+  // Ta projects to the centre of the window, at mid depth; the sphere of radius h fits.
+  glm::vec4 p = s.projection() * s.view() * glm::vec4(0, 1, 0, 1);
+  expect_vec3(glm::vec3(p) / p.w, {0, 0, 0});
+  glm::vec4 q = s.projection() * s.view() * glm::vec4(0, 2, -1, 1);  // up 1, right 1
+  expect_vec3(glm::vec3(q) / q.w, {1, 1, 0});
+  // Looking straight down the up vector still gives a right-handed frame.
+  auto d = make_snapshot_camera({0, 0, 0}, {0, 10, 0}, {0, 1, 0}, 1.0f);
+  EXPECT_NEAR(glm::dot(glm::cross(d.ho, d.uo), -d.vo), 1.0f, 1e-5f);
+  EXPECT_FLOAT_EQ(d.distance, 2.0f);
+}
+
+glm::vec3 orbit(float deg, float dist = 10.0f) {
+  return {dist * std::sin(glm::radians(deg)), 1.0f, dist * std::cos(glm::radians(deg))};
+}
+
+TEST(ViewTest, AngleOfRelativeRotation) {
+  const glm::vec3 ta(0, 1, 0), up(0, 1, 0);
+  auto a = view_rotation(make_snapshot_camera(ta, orbit(0), up, 1), 0.0f);
+  auto b = view_rotation(make_snapshot_camera(ta, orbit(10), up, 1), 0.0f);
+  EXPECT_NEAR(glm::degrees(rotation_angle(a, b)), 10.0f, 1e-3f);
+  // The character turning by 10 degrees looks the same as the camera orbiting by -10 degrees.
+  auto c = view_rotation(make_snapshot_camera(ta, orbit(0), up, 1), glm::radians(10.0f));
+  EXPECT_NEAR(glm::degrees(rotation_angle(a, c)), 10.0f, 1e-3f);
+  // Camera orbiting and character turning together: nothing changes in the character's frame.
+  auto d = view_rotation(make_snapshot_camera(ta, orbit(25), up, 1), glm::radians(25.0f));
+  EXPECT_NEAR(glm::degrees(rotation_angle(a, d)), 0.0f, 0.05f);
+  EXPECT_NEAR(rotation_cosine(a, a), 1.0f, 1e-6f);
+  // Rising above the character tilts the view.
+  auto e = view_rotation(make_snapshot_camera(ta, glm::vec3(0, 1 + 10 * std::tan(glm::radians(20.0f)), 10), up, 1), 0);
+  EXPECT_NEAR(glm::degrees(rotation_angle(a, e)), 20.0f, 1e-2f);
+}
+
+TEST(PostureTest, RelativeThresholdOnSquaredDistances) {
+  std::array<float, 4> stored{1.0f, 2.0f, 4.0f, 0.0f};
+  EXPECT_FALSE(posture_changed(stored, stored, 0.0f));
+  EXPECT_FALSE(posture_changed(stored, {1.3f, 2.0f, 4.0f, 0.0f}, 0.4f));
+  EXPECT_TRUE(posture_changed(stored, {1.5f, 2.0f, 4.0f, 0.0f}, 0.4f));
+  EXPECT_TRUE(posture_changed(stored, {1.0f, 2.0f, 2.0f, 0.0f}, 0.4f));  // shrinking counts too
+  EXPECT_TRUE(posture_changed(stored, {1.0f, 2.0f, 4.0f, 0.5f}, 0.4f));  // stored 0: absolute m^2
+  EXPECT_TRUE(posture_changed(stored, {1.0001f, 2.0f, 4.0f, 0.0f}, 0.0f));
+}
+
+TEST(DistanceWeight, GrowsBeyondReference) {
+  CacheConfig c;
+  EXPECT_FLOAT_EQ(distance_weight(c, 50.0f), 1.0f);  // off by default
+  c.distance_weighting = true;
+  c.reference_distance = 10.0f;
+  EXPECT_FLOAT_EQ(distance_weight(c, 5.0f), 1.0f);
+  EXPECT_FLOAT_EQ(distance_weight(c, 30.0f), 3.0f);
+}
+
+TEST(WindowChoice, SmallestThatHolds) {
+  WindowSizes w;
+  EXPECT_EQ(choose_window(w, 400.0f), 0);
+  EXPECT_EQ(choose_window(w, 256.0f), 0);
+  EXPECT_EQ(choose_window(w, 200.0f), 0);
+  EXPECT_EQ(choose_window(w, 128.0f), 1);
+  EXPECT_EQ(choose_window(w, 100.0f), 1);
+  EXPECT_EQ(choose_window(w, 64.0f), 2);
+  EXPECT_EQ(choose_window(w, 33.0f), 2);
+  EXPECT_EQ(choose_window(w, 32.0f), 3);
+  EXPECT_EQ(choose_window(w, 1.0f), 3);
+}
+
+TEST(Atlas, PacksSharesAndReleasesPages) {
+  WindowSizes w;
+  AtlasAllocator a(1024, 3, w);
+  std::vector<AtlasWindow> big;
+  std::set<std::tuple<int, int, int>> places;
+  for (int i = 0; i < 16; ++i) {
+    auto x = a.allocate(0);
+    ASSERT_TRUE(x);
+    EXPECT_EQ(x->page, 0);
+    EXPECT_EQ(x->size, 256);
+    EXPECT_LE(x->x + x->size, 1024);
+    EXPECT_LE(x->y + x->size, 1024);
+    EXPECT_TRUE(places.insert({x->page, x->x, x->y}).second);  // no two windows at one place
+    big.push_back(*x);
+  }
+  EXPECT_FLOAT_EQ(a.pixel_use(), 1.0f);
+  auto small = a.allocate(3);  // a 32-pixel window opens page 1 for its class
+  ASSERT_TRUE(small);
+  EXPECT_EQ(small->page, 1);
+  EXPECT_EQ(a.pages_used(), 2);
+  auto x = a.allocate(0);  // page 0 is full: page 2
+  ASSERT_TRUE(x);
+  EXPECT_EQ(x->page, 2);
+  for (int i = 1; i < 16; ++i) ASSERT_TRUE(a.allocate(0));  // fills page 2
+  EXPECT_FALSE(a.allocate(0));  // every page in use
+  EXPECT_FALSE(a.allocate(1));
+  a.release(big[5]);
+  auto again = a.allocate(0);
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->page, 0);
+  EXPECT_EQ(again->x, big[5].x);
+  EXPECT_EQ(again->y, big[5].y);
+  a.release(*small);  // page 1 empties and can serve another class
+  EXPECT_EQ(a.pages_used(), 2);
+  auto mid = a.allocate(1);
+  ASSERT_TRUE(mid);
+  EXPECT_EQ(mid->page, 1);
+  EXPECT_EQ(a.windows_used(), 16 + 16 + 1);
+}
+
+// A one-joint model with one triangle and a 1 s clip that stretches a second joint.
+Model tiny_model() {
+  Model m;
+  m.nodes = {Node{"root", -1, {}}, Node{"arm", 0, {glm::vec3(0, 1, 0), glm::quat(1, 0, 0, 0), glm::vec3(1)}}};
+  m.palette = {PaletteEntry{0, glm::mat4(1)}, PaletteEntry{1, glm::translate(glm::mat4(1), glm::vec3(0, -1, 0))}};
+  MeshLod lod;
+  lod.vertices.resize(3);
+  lod.vertices[0].position = {-0.5f, 0, 0};
+  lod.vertices[1].position = {0.5f, 0, 0};
+  lod.vertices[2].position = {0, 2, 0};
+  lod.vertices[2].joints = glm::u16vec4(1, 0, 0, 0);
+  lod.indices = {0, 1, 2};
+  lod.primitives = {Primitive{0, 3, 0}};
+  m.lods = {lod};
+  m.materials = {Material{}};
+  Clip clip;
+  clip.name = "stretch";
+  clip.duration = 1.0f;
+  Channel c;
+  c.node = 1;
+  c.path = ChannelPath::kTranslation;
+  c.times = {0.0f, 0.5f, 1.0f};
+  c.values = {{0, 1, 0, 0}, {0, 2, 0, 0}, {0, 1, 0, 0}};
+  clip.channels = {c};
+  m.clips = {clip};
+  m.bake(60.0f);
+  return m;
+}
+
+TEST(FramePlanner, TinyModelBoundsAndPairs) {
+  Model m = tiny_model();
+  EXPECT_NEAR(m.bounds_max.y, 3.0f, 1e-5f);  // tip reaches y = 3 at t = 0.5
+  EXPECT_NEAR(m.ta.y, 1.5f, 1e-5f);
+  EXPECT_GE(m.radius, 1.5f);
+}
+
+TEST(FramePlanner, CacheTestsDriveSnapshots) {
+  Model m = tiny_model();
+  Crowd crowd(m);
+  for (int i = 0; i < 5; ++i) crowd.add(Character{glm::vec3(2.0f * i - 4.0f, 0, 0), 0.0f, 1.0f, 0, 0.0f, 0.0f});
+  ImpostorConfig cfg;
+  cfg.cache.posture_test = false;
+  cfg.cache.view_threshold_deg = 8.0f;
+  FramePlanner planner(m, cfg);
+  SceneCamera cam;
+  cam.eye = {0, 1.5f, 30};
+  cam.target = {0, 1.5f, 0};
+  auto s0 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(s0.impostors, 5);
+  EXPECT_EQ(s0.snapshots, 5);
+  EXPECT_EQ(s0.new_snapshots, 5);
+  EXPECT_FLOAT_EQ(s0.refresh_fraction, 1.0f);
+  auto s1 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(s1.snapshots, 0);
+  EXPECT_EQ(s1.refresh_fraction, 0.0f);
+  // A geometry frame in between draws everything as geometry and leaves the cache alone.
+  const FramePlan& g = planner.plan(crowd, cam, 0.0f, RenderMode::kGeometry);
+  EXPECT_EQ(g.stats.geometry, 5);
+  EXPECT_EQ(g.geometry[0].size(), 5u);
+  // Turning the middle character by 7 degrees: below the threshold; by 9: above.
+  crowd[2].yaw = glm::radians(7.0f);
+  EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.snapshots, 0);
+  crowd[2].yaw = glm::radians(9.0f);
+  auto s2 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(s2.snapshots, 1);
+  EXPECT_EQ(s2.view_refreshes, 1);
+  // View test off: nothing refreshes however far it turns.
+  planner.config().cache.view_test = false;
+  crowd[2].yaw = glm::radians(90.0f);
+  EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.snapshots, 0);
+  // Posture test: the clip stretches the arm; at a 0 threshold every moving character refreshes.
+  planner.config().cache.posture_test = true;
+  planner.config().cache.posture_threshold = 0.0f;
+  for (std::size_t i = 0; i < crowd.size(); ++i) crowd[i].speed = 1.0f;
+  auto s3 = planner.plan(crowd, cam, 0.25f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(s3.snapshots, 5);
+  EXPECT_EQ(s3.posture_refreshes, 5);
+  // 0.25 -> 0.26 s changes the squared distances by about 1 %: a 40 % threshold keeps the windows.
+  planner.config().cache.posture_threshold = 0.4f;
+  EXPECT_EQ(planner.plan(crowd, cam, 0.26f, RenderMode::kImpostor).stats.snapshots, 0);
+  planner.invalidate();
+  EXPECT_EQ(planner.plan(crowd, cam, 0.26f, RenderMode::kImpostor).stats.snapshots, 5);
+}
+
+TEST(FramePlanner, WindowSizeCullingAndNearSwitch) {
+  Model m = tiny_model();
+  Crowd crowd(m);
+  crowd.add(Character{});
+  crowd.add(Character{glm::vec3(0, 0, -1000)});  // behind the far plane: culled
+  crowd.add(Character{glm::vec3(0, 0, 200)});    // behind the camera: culled
+  FramePlanner planner(m);
+  SceneCamera cam;
+  cam.far_plane = 500.0f;
+  cam.target = m.ta;
+  cam.height = 1024;
+  const float r = m.radius;
+  // On-screen diameter d = 2 r * ppm(distance): place the camera for d = 100 px -> the 128 window.
+  auto place = [&](float pixels) { cam.eye = m.ta + glm::vec3(0, 0, 2 * r * cam.pixels_per_metre(1.0f) / pixels); };
+  place(100.0f);
+  auto s = planner.plan(crowd, cam, 0.0f, RenderMode::kAuto).stats;
+  EXPECT_EQ(s.culled, 2);
+  EXPECT_EQ(s.impostors, 1);
+  EXPECT_EQ(s.impostors_per_window[1], 1);
+  place(50.0f);  // smaller: the 64 window, which is a refresh
+  s = planner.plan(crowd, cam, 0.0f, RenderMode::kAuto).stats;
+  EXPECT_EQ(s.impostors_per_window[2], 1);
+  EXPECT_EQ(s.window_refreshes, 1);
+  EXPECT_EQ(s.snapshots, 1);
+  EXPECT_EQ(planner.atlas().windows_used(), 1);  // the old window went back
+  place(300.0f);  // larger than the largest window: geometry in auto mode, impostor if forced
+  EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kAuto).stats.geometry, 1);
+  EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.impostors, 1);
+}
+
+TEST(FramePlanner, AtlasFullFallsBackToGeometry) {
+  Model m = tiny_model();
+  Crowd crowd(m);
+  for (int i = 0; i < 20; ++i) crowd.add(Character{glm::vec3(0.1f * i, 0, 0)});
+  ImpostorConfig cfg;
+  cfg.page_size = 256;
+  cfg.max_pages = 1;
+  FramePlanner planner(m, cfg);
+  SceneCamera cam;
+  cam.eye = {0, 1.5f, 300};  // far: 32-pixel windows, 64 per 256 page
+  cam.target = {0, 1.5f, 0};
+  auto s = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(s.impostors, 20);
+  cam.eye = {0, 1.5f, 15};  // near: 256 windows, one fits
+  s = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(s.impostors + s.geometry, 20);
+  EXPECT_GT(s.atlas_fallbacks, 0);
+}
+
+}  // namespace
+}  // namespace bb::runtime
