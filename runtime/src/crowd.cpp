@@ -114,8 +114,11 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
         }
       }
       if (!as_geometry) {
-        const SnapshotCamera sc = make_snapshot_camera(ta, camera.eye, camera.up, radius,
-                                                       config_.snapshot_distance > 0 ? config_.snapshot_distance * ch.scale : 0.0f);
+        SnapshotCamera sc = make_snapshot_camera(ta, camera.eye, camera.up, radius,
+                                                       config_.snapshot_distance > 0 ? config_.snapshot_distance * ch.scale : 0.0f,
+                                                       config_.perspective_snapshots);
+        if (config_.texel_per_pixel && sc.perspective)
+          sc.half_size = std::max(sc.half_size, static_cast<float>(config_.windows.size[wclass]) * sc.distance / (2.0f * ppm1));
         const glm::mat3 view = view_rotation(sc, ch.yaw);
         // Posture distances of the current frame (squared, model space, scaled).
         std::array<float, 4> posture;
@@ -143,12 +146,13 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
           cs.valid = true;
           cs.view = view;
           cs.posture = posture;
+          cs.half_size = sc.half_size;
           SnapshotGpu s;
           s.instance = inst;
           s.ho_half = glm::vec4(sc.ho, sc.half_size);
           s.uo_dist = glm::vec4(sc.uo, sc.distance);
-          s.vo = glm::vec4(sc.vo, 0.0f);
-          s.ta = glm::vec4(ta, 0.0f);
+          s.vo = glm::vec4(sc.vo, sc.perspective ? 1.0f : 0.0f);
+          s.ta = glm::vec4(ta, radius);
           const float half = static_cast<float>(win.size) / page;  // NDC half extent = size / page
           s.window = glm::vec4(-1.0f + (2.0f * win.x + win.size) / page, -1.0f + (2.0f * win.y + win.size) / page, half, 0.0f);
           plan_.snapshots[win.page].push_back(s);
@@ -157,7 +161,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
           st.snapshot_triangles += m.lods[window_lod[win.size_class]].triangle_count();
         }
         plan_.billboards.push_back(BillboardGpu{
-            glm::vec4(ta, radius),
+            glm::vec4(ta, cs.half_size),
             glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
             glm::vec4(static_cast<float>(win.page), 0.0f, 0.0f, 0.0f)});
         ++st.impostors;

@@ -32,17 +32,28 @@ glm::mat4 SnapshotCamera::view() const {
 }
 
 glm::mat4 SnapshotCamera::projection() const {
-  return glm::ortho(-half_size, half_size, -half_size, half_size, distance - half_size, distance + half_size);
+  const float n = std::max(distance - radius, 0.01f * distance), f = distance + radius;
+  if (perspective) {
+    const float s = half_size * n / distance;
+    return glm::frustum(-s, s, -s, s, n, f);
+  }
+  return glm::ortho(-half_size, half_size, -half_size, half_size, n, f);
 }
 
-SnapshotCamera make_snapshot_camera(const glm::vec3& ta, const glm::vec3& eye, const glm::vec3& up, float half_size,
-                                    float distance) {
+SnapshotCamera make_snapshot_camera(const glm::vec3& ta, const glm::vec3& eye, const glm::vec3& up, float radius,
+                                    float distance, bool perspective) {
   SnapshotCamera c;
   c.ta = ta;
-  c.half_size = half_size;
-  c.distance = distance > 0.0f ? distance : 2.0f * half_size;
+  c.radius = radius;
+  c.half_size = radius;
+  c.distance = distance > 0.0f ? distance : 2.0f * radius;
   glm::vec3 v = ta - eye;
   float l = glm::length(v);
+  if (perspective && l > 1.05f * radius) {
+    c.perspective = true;
+    c.distance = l;
+    c.half_size = radius * l / std::sqrt(l * l - radius * radius);
+  }
   c.vo = l > 0.0f ? v / l : glm::vec3(0, 0, -1);
   glm::vec3 h = glm::cross(c.vo, up);
   float hl = glm::length(h);

@@ -57,7 +57,12 @@ struct ImpostorConfig {
   // kAuto: a character whose on-screen diameter exceeds windows.size[0] * geometry_switch
   // pixels stays geometry (1.0: where a texel of the largest window would cover a pixel).
   float geometry_switch = 1.0f;
-  float snapshot_distance = 0.0f; // D of section 4.2; <= 0: 2 * radius
+  float snapshot_distance = 0.0f; // D of section 4.2 (orthographic); <= 0: 2 * radius
+  // Perspective snapshots from the eye (exact when taken) or the paper's orthographic ones.
+  bool perspective_snapshots = true;
+  // Perspective snapshots only: widen the frustum so one texel covers one screen pixel at Ta
+  // (on the view axis) when the window is larger than the character. Sharper, costs fill rate.
+  bool texel_per_pixel = false;
 };
 
 // Per-instance data the GPU reads (16-byte aligned, plain floats).
@@ -74,8 +79,8 @@ struct SnapshotGpu {
   InstanceGpu instance;
   glm::vec4 ho_half;       // Ho xyz, half size
   glm::vec4 uo_dist;       // Uo xyz, D
-  glm::vec4 vo;            // Vo xyz, unused
-  glm::vec4 ta;            // Ta xyz, unused
+  glm::vec4 vo;            // Vo xyz, 1 for a perspective snapshot (0: orthographic)
+  glm::vec4 ta;            // Ta xyz, radius
   glm::vec4 window;        // window rect in page NDC: centre x, centre y, half extent, unused
 };
 
@@ -129,6 +134,7 @@ class FramePlanner {
   struct CacheState {
     std::array<float, 4> posture{};
     glm::mat3 view{1.0f};
+    float half_size = 0.0f;  // of the billboard, metres, from the last snapshot
     AtlasWindow window;
     bool valid = false;
   };

@@ -29,22 +29,32 @@ struct SceneCamera {
 };
 
 // Section 4.2: Vo = unit(Ta - eye), Ho = Vo x Us, Uo = Ho x Vo, To = Ta - D Vo. The frustum is a
-// square of half size `half_size` (the model's snapshot radius) around Ta, depth Ta +- half_size.
+// square of half size `half_size` around Ta in the plane through Ta normal to Vo, depth Ta +- the
+// model's radius.
+//  - orthographic (the paper): half_size = radius, D arbitrary;
+//  - perspective (our default): D = |Ta - eye|, so To is the eye itself, and half_size =
+//    radius * D / sqrt(D^2 - radius^2) holds the sphere's projection. Drawn on a plane at Ta
+//    facing the eye, such a snapshot reproduces the geometry exactly at the moment it is taken
+//    (the orthographic one is off by the perspective of the body's depth, several pixels at
+//    256-pixel windows). With the eye inside 1.05 radius it falls back to orthographic.
 struct SnapshotCamera {
   glm::vec3 ta{0.0f};        // world
   glm::vec3 vo{0.0f, 0.0f, -1.0f}, ho{1.0f, 0.0f, 0.0f}, uo{0.0f, 1.0f, 0.0f};  // unit, world
   glm::vec3 to{0.0f};        // camera position, world
-  float half_size = 1.0f;    // metres
-  float distance = 2.0f;     // D, metres (does not change the picture)
+  float half_size = 1.0f;    // metres, in the plane through Ta
+  float radius = 1.0f;       // metres: the character's bounding sphere around Ta
+  float distance = 2.0f;     // D, metres (orthographic: does not change the picture)
+  bool perspective = false;
 
   glm::mat4 view() const;        // world -> camera (right-handed, looks along vo)
-  glm::mat4 projection() const;  // orthographic, [-h, h]^2, near D - h, far D + h
+  glm::mat4 projection() const;  // [-h, h]^2 at Ta; near D - radius, far D + radius
 };
 
-// Returns the snapshot camera; `distance` <= 0 uses 2 * half_size. When Vo is parallel to Us
-// the frame falls back to a horizontal Ho so the result is always a right-handed frame.
+// Returns the snapshot camera for a character whose poses fit in a sphere of `radius` around Ta.
+// Orthographic: `distance` <= 0 uses 2 * radius. When Vo is parallel to Us the frame falls back
+// to a horizontal Ho so the result is always a right-handed frame.
 SnapshotCamera make_snapshot_camera(const glm::vec3& ta, const glm::vec3& eye, const glm::vec3& up,
-                                    float half_size, float distance = 0.0f);
+                                    float radius, float distance = 0.0f, bool perspective = false);
 
 // Section 5.2: the "view matrix" of a character = the snapshot camera's frame expressed in the
 // character's frame (camera x character): columns Ho, Uo, -Vo rotated by the inverse of the

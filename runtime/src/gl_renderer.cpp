@@ -1,0 +1,567 @@
+// GL 4.5 back end of the runtime: GPU skinning from baked clips, instanced geometry, the
+// snapshot passes into the shared atlas, and the camera-facing impostor quads.
+#include <algorithm>
+#include <cstddef>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include <glm/gtc/type_ptr.hpp>
+
+#include "bb/runtime/renderer.h"
+#include "gl.h"
+
+namespace bb::runtime {
+
+namespace {
+
+const char* kCommon = R"(#version 450 core
+layout(binding = 0) uniform samplerBuffer u_palette;  // 3 RGBA32F texels per palette entry per frame
+uniform int u_palette_size;
+layout(location = 0) in vec3 a_pos;
+layout(location = 1) in vec3 a_nrm;
+layout(location = 2) in vec2 a_uv;
+layout(location = 3) in uvec4 a_joints;
+layout(location = 4) in vec4 a_weights;
+layout(location = 5) in vec4 i_pos_yaw;
+layout(location = 6) in vec4 i_anim;  // scale, row f0, row f1, blend
+out vec3 v_nrm;
+out vec2 v_uv;
+mat3x4 rows(uint j, int frame) {
+  int base = (frame * u_palette_size + int(j)) * 3;
+  return mat3x4(texelFetch(u_palette, base), texelFetch(u_palette, base + 1), texelFetch(u_palette, base + 2));
+}
+// Skinned, placed vertex in world space; normal in v_nrm.
+vec3 skin_world() {
+  int r0 = int(i_anim.y), r1 = int(i_anim.z);
+  float b = i_anim.w;
+  mat3x4 m = mat3x4(0.0);
+  for (int k = 0; k < 4; ++k) {
+    float w = a_weights[k];
+    if (w > 0.0) m += w * ((1.0 - b) * rows(a_joints[k], r0) + b * rows(a_joints[k], r1));
+  }
+  vec3 p = vec4(a_pos, 1.0) * m;
+  vec3 n = vec4(a_nrm, 0.0) * m;
+  float c = cos(i_pos_yaw.w), s = sin(i_pos_yaw.w);
+  p *= i_anim.x;
+  v_nrm = vec3(c * n.x + s * n.z, n.y, -s * n.x + c * n.z);
+  v_uv = a_uv;
+  return i_pos_yaw.xyz + vec3(c * p.x + s * p.z, p.y, -s * p.x + c * p.z);
+}
+)";
+
+const char* kGeometryVs = R"(
+uniform mat4 u_viewproj;
+void main() { gl_Position = u_viewproj * vec4(skin_world(), 1.0); }
+)";
+
+// Section 4.2: orthographic snapshot camera, mapped into the character's window of the page.
+const char* kSnapshotVs = R"(
+layout(location = 7) in vec4 i_ho_half;
+layout(location = 8) in vec4 i_uo_dist;
+layout(location = 9) in vec4 i_vo;
+layout(location = 10) in vec4 i_ta;
+layout(location = 11) in vec4 i_window;
+out float gl_ClipDistance[4];
+void main() {
+  vec3 d = skin_world() - i_ta.xyz;
+  float h = i_ho_half.w, r = i_ta.w, dist = i_uo_dist.w;
+  vec2 xy = vec2(dot(d, i_ho_half.xyz), dot(d, i_uo_dist.xyz)) / h;
+  float depth = dot(d, i_vo.xyz);
+  vec4 c;
+  if (i_vo.w > 0.5) {  // perspective from the eye: w = distance along Vo
+    float z = dist + depth;
+    float n = max(dist - r, 0.01 * dist), f = dist + r;
+    c = vec4(xy * dist, ((f + n) * z - 2.0 * f * n) / (f - n), z);
+  } else {
+    c = vec4(xy, clamp(depth / r, -1.0, 1.0), 1.0);
+  }
+  gl_Position = vec4(i_window.xy * c.w + c.xy * i_window.z, c.z, c.w);
+  gl_ClipDistance[0] = c.w + c.x;
+  gl_ClipDistance[1] = c.w - c.x;
+  gl_ClipDistance[2] = c.w + c.y;
+  gl_ClipDistance[3] = c.w - c.y;
+}
+)";
+
+const char* kShadeFs = R"(#version 450 core
+layout(binding = 1) uniform sampler2D u_tex;
+uniform vec4 u_color;
+uniform float u_cutoff;  // < 0: opaque
+uniform vec3 u_light;    // unit, world, towards the light
+in vec3 v_nrm;
+in vec2 v_uv;
+layout(location = 0) out vec4 o_color;
+void main() {
+  vec4 c = u_color * texture(u_tex, v_uv);
+  if (c.a < u_cutoff) discard;
+  vec3 n = normalize(v_nrm);
+  if (!gl_FrontFacing) n = -n;
+  float l = 0.35 + 0.65 * max(dot(n, u_light), 0.0);
+  o_color = vec4(c.rgb * l, 1.0);  // premultiplied, opaque
+}
+)";
+
+const char* kClearVs = R"(#version 450 core
+layout(location = 11) in vec4 i_window;
+out float gl_ClipDistance[4];
+void main() {
+  vec2 c = vec2(gl_VertexID & 1, gl_VertexID >> 1) * 2.0 - 1.0;
+  gl_Position = vec4(i_window.xy + c * i_window.z, 1.0, 1.0);
+  for (int k = 0; k < 4; ++k) gl_ClipDistance[k] = 1.0;
+}
+)";
+
+const char* kClearFs = R"(#version 450 core
+layout(location = 0) out vec4 o_color;
+void main() { o_color = vec4(0.0); }
+)";
+
+const char* kBillboardVs = R"(#version 450 core
+layout(location = 0) in vec4 i_ta_half;
+layout(location = 1) in vec4 i_uv;
+layout(location = 2) in vec4 i_layer;
+uniform mat4 u_viewproj;
+uniform vec3 u_eye;
+uniform vec3 u_up;
+out vec3 v_uvl;
+void main() {
+  vec2 c = vec2(gl_VertexID & 1, gl_VertexID >> 1) * 2.0 - 1.0;
+  vec3 ta = i_ta_half.xyz;
+  vec3 vo = normalize(ta - u_eye);
+  vec3 h = cross(vo, u_up);
+  if (length(h) < 1e-6) h = cross(vo, vec3(0.0, 0.0, 1.0));
+  vec3 ho = normalize(h);
+  vec3 uo = cross(ho, vo);
+  vec3 p = ta + i_ta_half.w * (c.x * ho + c.y * uo);
+  gl_Position = u_viewproj * vec4(p, 1.0);
+  v_uvl = vec3(mix(i_uv.xy, i_uv.zw, c * 0.5 + 0.5), i_layer.x);
+}
+)";
+
+const char* kBillboardFs = R"(#version 450 core
+layout(binding = 2) uniform sampler2DArray u_atlas;
+uniform int u_blend;
+in vec3 v_uvl;
+layout(location = 0) out vec4 o_color;
+void main() {
+  vec4 c = texture(u_atlas, v_uvl);
+  if (u_blend == 0) {
+    if (c.a < 0.5) discard;
+    o_color = vec4(c.rgb / c.a, 1.0);
+  } else {
+    if (c.a < 1.0 / 255.0) discard;
+    o_color = c;
+  }
+}
+)";
+
+Result<GLuint> compile(GLenum type, const std::string& src, const char* what) {
+  GLuint s = glCreateShader(type);
+  const char* p = src.c_str();
+  glShaderSource(s, 1, &p, nullptr);
+  glCompileShader(s);
+  GLint ok = 0;
+  glGetShaderiv(s, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    char log[4096] = {};
+    glGetShaderInfoLog(s, sizeof log, nullptr, log);
+    glDeleteShader(s);
+    return Error{"", what, std::string("shader does not compile: ") + log};
+  }
+  return s;
+}
+
+Result<GLuint> program(const std::string& vs, const std::string& fs, const char* what) {
+  auto v = compile(GL_VERTEX_SHADER, vs, what);
+  if (!v) return v.error();
+  auto f = compile(GL_FRAGMENT_SHADER, fs, what);
+  if (!f) return f.error();
+  GLuint p = glCreateProgram();
+  glAttachShader(p, *v);
+  glAttachShader(p, *f);
+  glLinkProgram(p);
+  glDeleteShader(*v);
+  glDeleteShader(*f);
+  GLint ok = 0;
+  glGetProgramiv(p, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    char log[4096] = {};
+    glGetProgramInfoLog(p, sizeof log, nullptr, log);
+    glDeleteProgram(p);
+    return Error{"", what, std::string("program does not link: ") + log};
+  }
+  return p;
+}
+
+// A buffer that grows and is rewritten every frame.
+struct StreamBuffer {
+  GLuint id = 0;
+  std::size_t capacity = 0;
+  void upload(const void* data, std::size_t bytes) {
+    if (bytes == 0) return;
+    if (bytes > capacity) {
+      capacity = std::max(bytes, capacity * 2);
+      glNamedBufferData(id, static_cast<GLsizeiptr>(capacity), nullptr, GL_STREAM_DRAW);
+    }
+    glNamedBufferSubData(id, 0, static_cast<GLsizeiptr>(bytes), data);
+  }
+};
+
+}  // namespace
+
+struct Renderer::Impl {
+  const Model* model = nullptr;
+  ImpostorConfig config;
+  struct Lod {
+    GLuint vbo = 0, ibo = 0, vao_geometry = 0, vao_snapshot = 0;
+  };
+  std::vector<Lod> lods;
+  std::vector<GLuint> textures;  // per model texture
+  GLuint white = 0;
+  GLuint palette_buffer = 0, palette_texture = 0;
+  GLuint prog_geometry = 0, prog_snapshot = 0, prog_clear = 0, prog_billboard = 0;
+  GLint loc_geometry_viewproj = -1;
+  GLuint atlas = 0, atlas_depth = 0, atlas_fbo = 0;
+  GLuint vao_billboard = 0;
+  StreamBuffer instances, snapshots, billboards;
+  std::vector<InstanceGpu> instance_scratch;
+  std::vector<SnapshotGpu> snapshot_scratch;
+  glm::vec3 light = glm::normalize(glm::vec3(0.4f, 0.8f, 0.6f));
+
+  void set_material(GLuint prog, const Material& m) {
+    glProgramUniform4fv(prog, glGetUniformLocation(prog, "u_color"), 1, glm::value_ptr(m.base_color));
+    glProgramUniform1f(prog, glGetUniformLocation(prog, "u_cutoff"), m.alpha_mask ? m.alpha_cutoff : -1.0f);
+    glBindTextureUnit(1, m.texture >= 0 ? textures[m.texture] : white);
+  }
+
+  void draw_lod(GLuint prog, int lod, GLsizei count, GLuint base_instance) {
+    const MeshLod& ml = model->lods[lod];
+    for (const Primitive& p : ml.primitives) {
+      set_material(prog, model->materials[p.material]);
+      glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(p.index_count), GL_UNSIGNED_INT,
+                                          reinterpret_cast<const void*>(static_cast<std::uintptr_t>(p.first_index) * 4),
+                                          count, base_instance);
+    }
+  }
+};
+
+Renderer::Renderer() : impl_(std::make_unique<Impl>()) {}
+
+const Model& Renderer::model() const { return *impl_->model; }
+
+Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const ImpostorConfig& config) {
+  std::unique_ptr<Renderer> r(new Renderer());
+  Impl& d = *r->impl_;
+  d.model = &model;
+  d.config = config;
+  while (glGetError() != GL_NO_ERROR) {
+  }
+  auto pg = program(std::string(kCommon) + kGeometryVs, kShadeFs, "geometry shader");
+  if (!pg) return pg.error();
+  d.prog_geometry = *pg;
+  auto ps = program(std::string(kCommon) + kSnapshotVs, kShadeFs, "snapshot shader");
+  if (!ps) return ps.error();
+  d.prog_snapshot = *ps;
+  auto pc = program(kClearVs, kClearFs, "window clear shader");
+  if (!pc) return pc.error();
+  d.prog_clear = *pc;
+  auto pb = program(kBillboardVs, kBillboardFs, "impostor shader");
+  if (!pb) return pb.error();
+  d.prog_billboard = *pb;
+  const GLint psize = static_cast<GLint>(model.palette.size());
+  glProgramUniform1i(d.prog_geometry, glGetUniformLocation(d.prog_geometry, "u_palette_size"), psize);
+  glProgramUniform1i(d.prog_snapshot, glGetUniformLocation(d.prog_snapshot, "u_palette_size"), psize);
+  for (GLuint p : {d.prog_geometry, d.prog_snapshot})
+    glProgramUniform3fv(p, glGetUniformLocation(p, "u_light"), 1, glm::value_ptr(d.light));
+  d.loc_geometry_viewproj = glGetUniformLocation(d.prog_geometry, "u_viewproj");
+
+  // Baked clips as a texture buffer.
+  const auto rows = model.baked_palette();
+  GLint max_texels = 0;
+  glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &max_texels);
+  if (rows.size() > static_cast<std::size_t>(max_texels))
+    return Error{model.name, "clips", "the baked clips need " + std::to_string(rows.size()) + " texels, the GPU allows " +
+                                          std::to_string(max_texels) + " (bake at a lower rate)"};
+  glCreateBuffers(1, &d.palette_buffer);
+  glNamedBufferStorage(d.palette_buffer, static_cast<GLsizeiptr>(std::max<std::size_t>(1, rows.size()) * sizeof(glm::vec4)),
+                       rows.empty() ? nullptr : rows.data(), 0);
+  glCreateTextures(GL_TEXTURE_BUFFER, 1, &d.palette_texture);
+  glTextureBuffer(d.palette_texture, GL_RGBA32F, d.palette_buffer);
+
+  // Textures (mipmapped), and a white one for untextured materials.
+  auto make_texture = [](int w, int h, const std::uint8_t* px) {
+    GLuint t;
+    glCreateTextures(GL_TEXTURE_2D, 1, &t);
+    int levels = 1;
+    while ((std::max(w, h) >> levels) > 0) ++levels;
+    glTextureStorage2D(t, levels, GL_RGBA8, w, h);
+    glTextureSubImage2D(t, 0, 0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, px);
+    glGenerateTextureMipmap(t);
+    glTextureParameteri(t, GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+    glTextureParameteri(t, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    glTextureParameteri(t, GL_TEXTURE_WRAP_S, GL_REPEAT);
+    glTextureParameteri(t, GL_TEXTURE_WRAP_T, GL_REPEAT);
+    return t;
+  };
+  const std::uint8_t white[4] = {255, 255, 255, 255};
+  d.white = make_texture(1, 1, white);
+  for (const Texture& t : model.textures) d.textures.push_back(make_texture(t.width, t.height, t.rgba.data()));
+
+  glCreateBuffers(1, &d.instances.id);
+  glCreateBuffers(1, &d.snapshots.id);
+  glCreateBuffers(1, &d.billboards.id);
+  for (StreamBuffer* b : {&d.instances, &d.snapshots, &d.billboards}) b->upload(nullptr, 0);
+  d.instances.capacity = d.snapshots.capacity = d.billboards.capacity = 4096;
+  for (StreamBuffer* b : {&d.instances, &d.snapshots, &d.billboards})
+    glNamedBufferData(b->id, static_cast<GLsizeiptr>(b->capacity), nullptr, GL_STREAM_DRAW);
+
+  auto vertex_format = [](GLuint vao, GLuint vbo, GLuint ibo) {
+    glVertexArrayVertexBuffer(vao, 0, vbo, 0, sizeof(Vertex));
+    glVertexArrayElementBuffer(vao, ibo);
+    const GLuint offs[5] = {offsetof(Vertex, position), offsetof(Vertex, normal), offsetof(Vertex, uv),
+                            offsetof(Vertex, joints), offsetof(Vertex, weights)};
+    for (GLuint a = 0; a < 5; ++a) {
+      glEnableVertexArrayAttrib(vao, a);
+      glVertexArrayAttribBinding(vao, a, 0);
+    }
+    glVertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, offs[0]);
+    glVertexArrayAttribFormat(vao, 1, 3, GL_FLOAT, GL_FALSE, offs[1]);
+    glVertexArrayAttribFormat(vao, 2, 2, GL_FLOAT, GL_FALSE, offs[2]);
+    glVertexArrayAttribIFormat(vao, 3, 4, GL_UNSIGNED_SHORT, offs[3]);
+    glVertexArrayAttribFormat(vao, 4, 4, GL_FLOAT, GL_FALSE, offs[4]);
+  };
+  auto instance_attribs = [](GLuint vao, GLuint buffer, GLsizei stride, GLuint first_attr, GLuint count) {
+    glVertexArrayVertexBuffer(vao, 1, buffer, 0, stride);
+    glVertexArrayBindingDivisor(vao, 1, 1);
+    for (GLuint k = 0; k < count; ++k) {
+      glEnableVertexArrayAttrib(vao, first_attr + k);
+      glVertexArrayAttribBinding(vao, first_attr + k, 1);
+      glVertexArrayAttribFormat(vao, first_attr + k, 4, GL_FLOAT, GL_FALSE, k * 16);
+    }
+  };
+  for (const MeshLod& ml : model.lods) {
+    Impl::Lod l;
+    glCreateBuffers(1, &l.vbo);
+    glNamedBufferStorage(l.vbo, static_cast<GLsizeiptr>(ml.vertices.size() * sizeof(Vertex)), ml.vertices.data(), 0);
+    glCreateBuffers(1, &l.ibo);
+    glNamedBufferStorage(l.ibo, static_cast<GLsizeiptr>(ml.indices.size() * 4), ml.indices.data(), 0);
+    glCreateVertexArrays(1, &l.vao_geometry);
+    vertex_format(l.vao_geometry, l.vbo, l.ibo);
+    instance_attribs(l.vao_geometry, d.instances.id, sizeof(InstanceGpu), 5, 2);
+    glCreateVertexArrays(1, &l.vao_snapshot);
+    vertex_format(l.vao_snapshot, l.vbo, l.ibo);
+    instance_attribs(l.vao_snapshot, d.snapshots.id, sizeof(SnapshotGpu), 5, 7);
+    d.lods.push_back(l);
+  }
+  glCreateVertexArrays(1, &d.vao_billboard);
+  instance_attribs(d.vao_billboard, d.billboards.id, sizeof(BillboardGpu), 0, 3);
+
+  // The atlas: one RGBA8 layer per page, one depth buffer shared by all pages.
+  GLint max_layers = 0, max_size = 0;
+  glGetIntegerv(GL_MAX_ARRAY_TEXTURE_LAYERS, &max_layers);
+  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
+  if (config.page_size > max_size || config.max_pages > max_layers)
+    return Error{"", "atlas", "page size " + std::to_string(config.page_size) + " x " + std::to_string(config.max_pages) +
+                                  " pages exceeds the GPU's limits (" + std::to_string(max_size) + ", " +
+                                  std::to_string(max_layers) + " layers)"};
+  glCreateTextures(GL_TEXTURE_2D_ARRAY, 1, &d.atlas);
+  glTextureStorage3D(d.atlas, 1, GL_RGBA8, config.page_size, config.page_size, config.max_pages);
+  glTextureParameteri(d.atlas, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  glTextureParameteri(d.atlas, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  glTextureParameteri(d.atlas, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTextureParameteri(d.atlas, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  glCreateRenderbuffers(1, &d.atlas_depth);
+  glNamedRenderbufferStorage(d.atlas_depth, GL_DEPTH_COMPONENT24, config.page_size, config.page_size);
+  glCreateFramebuffers(1, &d.atlas_fbo);
+  glNamedFramebufferTextureLayer(d.atlas_fbo, GL_COLOR_ATTACHMENT0, d.atlas, 0, 0);
+  glNamedFramebufferRenderbuffer(d.atlas_fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, d.atlas_depth);
+  if (glCheckNamedFramebufferStatus(d.atlas_fbo, GL_DRAW_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+    return Error{"", "atlas", "the atlas framebuffer is incomplete"};
+  if (GLenum e = glGetError(); e != GL_NO_ERROR)
+    return Error{"", "GL", "error 0x" + std::to_string(e) + " while uploading the model"};
+  return r;
+}
+
+Renderer::~Renderer() {
+  if (!impl_) return;
+  Impl& d = *impl_;
+  for (auto& l : d.lods) {
+    glDeleteVertexArrays(1, &l.vao_geometry);
+    glDeleteVertexArrays(1, &l.vao_snapshot);
+    glDeleteBuffers(1, &l.vbo);
+    glDeleteBuffers(1, &l.ibo);
+  }
+  glDeleteVertexArrays(1, &d.vao_billboard);
+  if (!d.textures.empty()) glDeleteTextures(static_cast<GLsizei>(d.textures.size()), d.textures.data());
+  glDeleteTextures(1, &d.white);
+  glDeleteTextures(1, &d.palette_texture);
+  glDeleteBuffers(1, &d.palette_buffer);
+  for (GLuint b : {d.instances.id, d.snapshots.id, d.billboards.id}) glDeleteBuffers(1, &b);
+  glDeleteTextures(1, &d.atlas);
+  glDeleteRenderbuffers(1, &d.atlas_depth);
+  glDeleteFramebuffers(1, &d.atlas_fbo);
+  for (GLuint p : {d.prog_geometry, d.prog_snapshot, d.prog_clear, d.prog_billboard}) glDeleteProgram(p);
+}
+
+void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
+  Impl& d = *impl_;
+  glBindTextureUnit(0, d.palette_texture);
+  glDisable(GL_CULL_FACE);
+  glDisable(GL_BLEND);
+  glEnable(GL_DEPTH_TEST);
+  glDepthMask(GL_TRUE);
+  glDepthFunc(GL_LESS);
+
+  // 1. Snapshots due, one pass per atlas page (section 4: few passes, shared pages).
+  if (options.take_snapshots) {
+    d.snapshot_scratch.clear();
+    for (const auto& page : plan.snapshots) d.snapshot_scratch.insert(d.snapshot_scratch.end(), page.begin(), page.end());
+    if (!d.snapshot_scratch.empty()) {
+      d.snapshots.upload(d.snapshot_scratch.data(), d.snapshot_scratch.size() * sizeof(SnapshotGpu));
+      GLint prev_fbo = 0, vp[4];
+      glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &prev_fbo);
+      glGetIntegerv(GL_VIEWPORT, vp);
+      glBindFramebuffer(GL_DRAW_FRAMEBUFFER, d.atlas_fbo);
+      glViewport(0, 0, d.config.page_size, d.config.page_size);
+      for (int k = 0; k < 4; ++k) glEnable(GL_CLIP_DISTANCE0 + k);
+      GLuint base = 0;
+      for (std::size_t page = 0; page < plan.snapshots.size(); ++page) {
+        const auto& list = plan.snapshots[page];
+        if (list.empty()) continue;
+        const GLsizei count = static_cast<GLsizei>(list.size());
+        glNamedFramebufferTextureLayer(d.atlas_fbo, GL_COLOR_ATTACHMENT0, d.atlas, 0, static_cast<GLint>(page));
+        const int lod = std::clamp(plan.page_lod[page], 0, static_cast<int>(d.lods.size()) - 1);
+        // Clear the windows (colour to transparent, depth to far), then draw the characters.
+        glUseProgram(d.prog_clear);
+        glBindVertexArray(d.lods[0].vao_snapshot);
+        glDepthFunc(GL_ALWAYS);
+        glDrawArraysInstancedBaseInstance(GL_TRIANGLE_STRIP, 0, 4, count, base);
+        glDepthFunc(GL_LESS);
+        glUseProgram(d.prog_snapshot);
+        glBindVertexArray(d.lods[lod].vao_snapshot);
+        d.draw_lod(d.prog_snapshot, lod, count, base);
+        base += static_cast<GLuint>(count);
+      }
+      for (int k = 0; k < 4; ++k) glDisable(GL_CLIP_DISTANCE0 + k);
+      glBindFramebuffer(GL_DRAW_FRAMEBUFFER, static_cast<GLuint>(prev_fbo));
+      glViewport(vp[0], vp[1], vp[2], vp[3]);
+    }
+  }
+  glViewport(0, 0, plan.camera.width, plan.camera.height);
+  const glm::mat4 viewproj = plan.camera.projection() * plan.camera.view();
+
+  // 2. Geometry: one instanced draw per LOD level and primitive.
+  if (options.draw_geometry) {
+    d.instance_scratch.clear();
+    for (const auto& l : plan.geometry) d.instance_scratch.insert(d.instance_scratch.end(), l.begin(), l.end());
+    if (!d.instance_scratch.empty()) {
+      d.instances.upload(d.instance_scratch.data(), d.instance_scratch.size() * sizeof(InstanceGpu));
+      glUseProgram(d.prog_geometry);
+      glProgramUniformMatrix4fv(d.prog_geometry, d.loc_geometry_viewproj, 1, GL_FALSE, glm::value_ptr(viewproj));
+      GLuint base = 0;
+      for (std::size_t lod = 0; lod < plan.geometry.size() && lod < d.lods.size(); ++lod) {
+        const GLsizei count = static_cast<GLsizei>(plan.geometry[lod].size());
+        if (count == 0) continue;
+        glBindVertexArray(d.lods[lod].vao_geometry);
+        d.draw_lod(d.prog_geometry, static_cast<int>(lod), count, base);
+        base += static_cast<GLuint>(count);
+      }
+    }
+  }
+
+  // 3. Impostors: camera-facing quads, one instanced draw.
+  if (options.draw_impostors && !plan.billboards.empty()) {
+    d.billboards.upload(plan.billboards.data(), plan.billboards.size() * sizeof(BillboardGpu));
+    glUseProgram(d.prog_billboard);
+    glProgramUniformMatrix4fv(d.prog_billboard, glGetUniformLocation(d.prog_billboard, "u_viewproj"), 1, GL_FALSE,
+                              glm::value_ptr(viewproj));
+    glProgramUniform3fv(d.prog_billboard, glGetUniformLocation(d.prog_billboard, "u_eye"), 1, glm::value_ptr(plan.camera.eye));
+    glProgramUniform3fv(d.prog_billboard, glGetUniformLocation(d.prog_billboard, "u_up"), 1, glm::value_ptr(plan.camera.up));
+    glProgramUniform1i(d.prog_billboard, glGetUniformLocation(d.prog_billboard, "u_blend"), options.blend_impostors ? 1 : 0);
+    glBindTextureUnit(2, d.atlas);
+    if (options.blend_impostors) {
+      glEnable(GL_BLEND);
+      glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+    }
+    glBindVertexArray(d.vao_billboard);
+    glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(plan.billboards.size()));
+    glDisable(GL_BLEND);
+  }
+  glBindVertexArray(0);
+  glUseProgram(0);
+}
+
+std::vector<std::uint8_t> Renderer::read_atlas_page(int page) const {
+  const int s = impl_->config.page_size;
+  std::vector<std::uint8_t> px(static_cast<std::size_t>(s) * s * 4);
+  glGetTextureSubImage(impl_->atlas, 0, 0, 0, page, s, s, 1, GL_RGBA, GL_UNSIGNED_BYTE, static_cast<GLsizei>(px.size()),
+                       px.data());
+  return px;
+}
+
+Result<std::unique_ptr<OffscreenTarget>> OffscreenTarget::create(int width, int height) {
+  if (width <= 0 || height <= 0 || width > 16384 || height > 16384)
+    return Error{"", "target", "size " + std::to_string(width) + "x" + std::to_string(height) + " is out of range"};
+  std::unique_ptr<OffscreenTarget> t(new OffscreenTarget());
+  t->width_ = width;
+  t->height_ = height;
+  glCreateRenderbuffers(1, &t->color_);
+  glNamedRenderbufferStorage(t->color_, GL_RGBA8, width, height);
+  glCreateRenderbuffers(1, &t->depth_);
+  glNamedRenderbufferStorage(t->depth_, GL_DEPTH_COMPONENT24, width, height);
+  glCreateFramebuffers(1, &t->fbo_);
+  glNamedFramebufferRenderbuffer(t->fbo_, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, t->color_);
+  glNamedFramebufferRenderbuffer(t->fbo_, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, t->depth_);
+  if (glCheckNamedFramebufferStatus(t->fbo_, GL_DRAW_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+    return Error{"", "target", "framebuffer incomplete"};
+  return t;
+}
+
+OffscreenTarget::~OffscreenTarget() {
+  glDeleteFramebuffers(1, &fbo_);
+  glDeleteRenderbuffers(1, &color_);
+  glDeleteRenderbuffers(1, &depth_);
+}
+
+void OffscreenTarget::bind(bool clear) {
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  glViewport(0, 0, width_, height_);
+  if (clear) {
+    glClearColor(0, 0, 0, 0);
+    glClearDepth(1.0);
+    glDepthMask(GL_TRUE);
+    glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  }
+}
+
+std::vector<std::uint8_t> OffscreenTarget::read_rgba() const {
+  std::vector<std::uint8_t> px(static_cast<std::size_t>(width_) * height_ * 4);
+  glBindFramebuffer(GL_READ_FRAMEBUFFER, fbo_);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glReadPixels(0, 0, width_, height_, GL_RGBA, GL_UNSIGNED_BYTE, px.data());
+  const std::size_t row = static_cast<std::size_t>(width_) * 4;
+  std::vector<std::uint8_t> tmp(row);
+  for (int y = 0; y < height_ / 2; ++y) {
+    std::uint8_t* a = px.data() + y * row;
+    std::uint8_t* b = px.data() + (height_ - 1 - y) * row;
+    std::memcpy(tmp.data(), a, row);
+    std::memcpy(a, b, row);
+    std::memcpy(b, tmp.data(), row);
+  }
+  return px;
+}
+
+GpuTimer::GpuTimer() { glCreateQueries(GL_TIME_ELAPSED, 1, &query_); }
+GpuTimer::~GpuTimer() { glDeleteQueries(1, &query_); }
+void GpuTimer::begin() { glBeginQuery(GL_TIME_ELAPSED, query_); }
+void GpuTimer::end() { glEndQuery(GL_TIME_ELAPSED); }
+double GpuTimer::elapsed_ms() {
+  GLuint64 ns = 0;
+  glGetQueryObjectui64v(query_, GL_QUERY_RESULT, &ns);
+  return static_cast<double>(ns) * 1e-6;
+}
+
+void gpu_finish() { glFinish(); }
+
+}  // namespace bb::runtime

@@ -1,0 +1,61 @@
+#include "bb/runtime/portrait.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "bb/runtime/renderer.h"
+
+namespace bb::runtime {
+
+SceneCamera portrait_camera(const Model& model, const PortraitOptions& o) {
+  SceneCamera cam;
+  cam.fov_y = glm::radians(o.fov_y_deg);
+  cam.width = o.width;
+  cam.height = o.height;
+  float dist = o.distance > 0.0f ? o.distance : model.radius / std::tan(0.5f * cam.fov_y) / 0.9f;
+  const float az = glm::radians(o.azimuth_deg), el = glm::radians(o.elevation_deg);
+  cam.target = model.ta;
+  cam.eye = model.ta + dist * glm::vec3(std::sin(az) * std::cos(el), std::sin(el), std::cos(az) * std::cos(el));
+  cam.near_plane = std::max(0.01f, 0.05f * dist);
+  cam.far_plane = dist + 10.0f * model.radius + 10.0f;
+  return cam;
+}
+
+Result<Image> render_portrait(const Model& model, const PortraitOptions& o) {
+  const SceneCamera cam = portrait_camera(model, o);
+  ImpostorConfig cfg;
+  // One texel per pixel: the window is the character's on-screen size (even, so that with Ta at
+  // the centre of an even-sized image the texels fall on the pixels).
+  const float depth = glm::distance(cam.eye, model.ta), r = model.radius;
+  const float half = depth > 1.05f * r ? r * depth / std::sqrt(depth * depth - r * r) : r;
+  int window = static_cast<int>(std::ceil(2.0f * half * cam.pixels_per_metre(depth) - 1e-3f));
+  window = std::clamp(window + (window & 1), 8, 4096);
+  cfg.texel_per_pixel = true;
+  if (o.orthographic) {
+    cfg.perspective_snapshots = false;
+    window = std::clamp(static_cast<int>(std::ceil(2.0f * r * cam.pixels_per_metre(depth))), 8, 4096);
+  }
+  cfg.windows.count = 1;
+  cfg.windows.size[0] = window;
+  cfg.page_size = window;
+  cfg.max_pages = 1;
+  Crowd crowd(model);
+  crowd.add(Character{glm::vec3(0.0f), 0.0f, 1.0f, o.clip, 0.0f, 1.0f});
+  FramePlanner planner(model, cfg);
+  const FramePlan& plan = planner.plan(crowd, cam, o.time, o.mode == RenderMode::kGeometry ? RenderMode::kGeometry : RenderMode::kImpostor);
+  auto renderer = Renderer::create(model, cfg);
+  if (!renderer) return renderer.error();
+  auto target = OffscreenTarget::create(o.width, o.height);
+  if (!target) return target.error();
+  (*target)->bind(true);
+  (*renderer)->draw(plan);
+  Image img;
+  img.width = o.width;
+  img.height = o.height;
+  img.rgba = (*target)->read_rgba();
+  img.stats = plan.stats;
+  img.window_pixels = window;
+  return img;
+}
+
+}  // namespace bb::runtime

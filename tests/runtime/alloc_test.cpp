@@ -1,0 +1,56 @@
+// The per-frame path allocates nothing: after warm-up frames, FramePlanner::plan makes no heap
+// allocation (global operator new is counted in this test binary).
+#include <atomic>
+#include <cstdlib>
+#include <filesystem>
+#include <new>
+
+#include <gtest/gtest.h>
+
+#include "bb/runtime/crowd.h"
+
+namespace {
+std::atomic<long> g_allocations{0};
+}
+
+void* operator new(std::size_t n) {
+  ++g_allocations;
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace bb::runtime {
+namespace {
+
+TEST(PerFrame, PlannerAllocatesNothingAfterWarmUp) {
+  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
+  auto m = load_model(path);
+  ASSERT_TRUE(m.ok());
+  Crowd crowd(*m);
+  for (int i = 0; i < 500; ++i)
+    crowd.add(Character{glm::vec3((i % 25) * 1.5f - 18.0f, 0, -(i / 25) * 1.5f), 0.1f * i, 1.0f, 0, 0.05f * i, 1.0f});
+  FramePlanner planner(*m);
+  SceneCamera cam;
+  cam.eye = {0, 20, 25};
+  cam.target = {0, 0, -15};
+  float t = 0.0f;
+  for (int f = 0; f < 5; ++f, t += 1.0f / 60.0f) {
+    planner.plan(crowd, cam, t, RenderMode::kImpostor);
+    planner.plan(crowd, cam, t, RenderMode::kGeometry);
+  }
+  const long before = g_allocations.load();
+  int snapshots = 0;
+  for (int f = 0; f < 60; ++f, t += 1.0f / 60.0f) {
+    cam.eye.x = 0.05f * f;  // a moving camera: windows refresh, none is reallocated
+    snapshots += planner.plan(crowd, cam, t, RenderMode::kImpostor).stats.snapshots;
+    planner.plan(crowd, cam, t, RenderMode::kGeometry);
+  }
+  EXPECT_EQ(g_allocations.load() - before, 0);
+  EXPECT_GT(snapshots, 0);
+}
+
+}  // namespace
+}  // namespace bb::runtime
