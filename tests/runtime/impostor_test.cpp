@@ -270,3 +270,21 @@ TEST(FramePlanner, AtlasFullFallsBackToGeometry) {
 
 }  // namespace
 }  // namespace bb::runtime
+
+namespace bb::runtime {
+namespace {
+
+TEST(FramePlanner, LodFromScreenCoverage) {
+  Model m = tiny_model();
+  m.lods.push_back(m.lods[0]);
+  m.lods[0].screen_coverage = 0.4f;  // finest level while the character covers >= 40 % of the height
+  m.lods[1].screen_coverage = 0.0f;
+  FramePlanner planner(m);
+  EXPECT_EQ(planner.lod_for(500.0f, 1024), 0);
+  EXPECT_EQ(planner.lod_for(410.0f, 1024), 0);
+  EXPECT_EQ(planner.lod_for(400.0f, 1024), 1);
+  EXPECT_EQ(planner.lod_for(3.0f, 1024), 1);
+}
+
+}  // namespace
+}  // namespace bb::runtime

@@ -278,3 +278,40 @@ TEST(LoadModel, ValidatorSuiteRejectedCleanly) {
 
 }  // namespace
 }  // namespace bb::runtime
+
+namespace bb::runtime {
+namespace {
+
+// MSFT_lod on the skinned node: a second level (the same mesh here) and its screen coverage.
+TEST(LoadModel, MsftLodLevelsAndCoverage) {
+  std::string src = gltf_dir() + "/SimpleSkin.gltf";
+  REQUIRE_SHARED(src);
+  std::ifstream in(src);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  std::string text;
+  for (char ch : ss.str())
+    if (ch != '\r') text += ch;  // the file has CRLF line ends
+  auto replace = [&](const std::string& a, const std::string& b) {
+    auto p = text.find(a);
+    ASSERT_NE(p, std::string::npos) << a;
+    text.replace(p, a.size(), b);
+  };
+  replace("\"skin\" : 0,\n    \"mesh\" : 0\n  }",
+          "\"skin\" : 0, \"mesh\" : 0, \"extensions\" : {\"MSFT_lod\" : {\"ids\" : [3]}},"
+          " \"extras\" : {\"MSFT_screencoverage\" : [0.4, 0.0]}\n  }");
+  replace("\"rotation\" : [ 0.0, 0.0, 0.0, 1.0 ]\n  } ]", "\"rotation\" : [ 0.0, 0.0, 0.0, 1.0 ]\n  }, {\"skin\" : 0, \"mesh\" : 0} ]");
+  fs::path tmp = fs::temp_directory_path() / "bb_runtime_lod.gltf";
+  { std::ofstream(tmp) << text; }
+  auto r = load_model(tmp.string());
+  fs::remove(tmp);
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  ASSERT_EQ(r->lods.size(), 2u);
+  EXPECT_FLOAT_EQ(r->lods[0].screen_coverage, 0.4f);
+  EXPECT_FLOAT_EQ(r->lods[1].screen_coverage, 0.0f);
+  EXPECT_EQ(r->lods[1].vertices.size(), 10u);
+  EXPECT_EQ(r->palette.size(), 2u);  // both levels share the skin
+}
+
+}  // namespace
+}  // namespace bb::runtime

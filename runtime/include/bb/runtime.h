@@ -1,0 +1,35 @@
+// bb_runtime: animated impostors for numerous virtual humans (Aubel, Boulic, Thalmann), for games.
+// GLM, tinygltf and OpenGL 4.5 only; it never creates windows: the game gives it a current GL
+// context (our tools use bb/runtime/headless.h). A game's whole use:
+//
+//   #include <bb/runtime.h>
+//   namespace rt = bb::runtime;
+//
+//   // Once, with the game's GL 4.5 core context current:
+//   bb::Result<rt::Model> model = rt::load_model("walker.glb");       // skinned glTF, MSFT_lod
+//   if (!model) { std::puts(model.error().message().c_str()); return; }  // "file: $.path: reason"
+//   rt::ImpostorConfig config;                    // windows 256/128/64/32, posture 40 %, view 8 deg
+//   rt::Crowd crowd(*model);
+//   for (int i = 0; i < 1000; ++i)
+//     crowd.add({.position = {2.0f * (i % 40), 0, 2.0f * (i / 40)}, .yaw = 0.1f * i,
+//                .clip = 0, .phase = 0.37f * i, .speed = 1.0f});
+//   rt::FramePlanner planner(*model, config);     // per-character cache state, atlas allocator
+//   auto renderer = rt::Renderer::create(*model, config);  // GPU buffers, atlas pages
+//   if (!renderer) { std::puts(renderer.error().message().c_str()); return; }
+//
+//   // Every frame (move characters by writing crowd[i].position / .yaw):
+//   rt::SceneCamera cam{.eye = eye, .target = target, .width = w, .height = h};
+//   const rt::FramePlan& plan = planner.plan(crowd, cam, seconds, rt::RenderMode::kAuto);
+//   (*renderer)->draw(plan);                      // into the bound framebuffer
+//   const rt::FrameStats& s = plan.stats;         // geometry, impostors, snapshots, refresh_fraction,
+//                                                 // atlas_pages_used, atlas_pixel_use, ...
+//
+// CMake: find_package(bb REQUIRED) then target_link_libraries(game PRIVATE bb::runtime).
+#pragma once
+
+#include "bb/result.h"
+#include "bb/runtime/animation.h"
+#include "bb/runtime/crowd.h"
+#include "bb/runtime/impostor.h"
+#include "bb/runtime/model.h"
+#include "bb/runtime/renderer.h"
