@@ -1,5 +1,6 @@
 #include <vector>
 
+#define STB_IMAGE_WRITE_STATIC
 #define STB_IMAGE_WRITE_IMPLEMENTATION
 #define STBIW_WINDOWS_UTF8
 #include <stb/stb_image_write.h>

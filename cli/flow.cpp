@@ -1,0 +1,290 @@
+// bodybuilder flow: the paper's human flow test bed (section 6) with its two experiments.
+#include "flow.h"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "bb/runtime/headless.h"
+#include "bb/runtime/model.h"
+#include "chart.h"
+#include "commands.h"
+#include "io.h"
+
+namespace bb::cli {
+
+// The default body's LOD set, built into `dir` (flow_model.cpp).
+Result<std::string> default_flow_model(const std::string& dir);
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::ordered_json;
+
+struct FlowArgs {
+  std::string model, out = "out/flow", size = "1280x1024", mode = "both", posture = "0.4", view = "8", sweep;
+  int humans = 20, frames = 120;
+  bool json = false, scaling = false, distance_weighting = false;
+  float orbit = 0;
+  std::string scaling_list = "20,100,500,1000,2000,5000,10000";
+  int scaling_frames = 10;
+};
+
+ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
+  ordered_json j;
+  j["humans"] = r.humans;
+  j["frames"] = r.frames;
+  j["size"] = std::to_string(r.width) + "x" + std::to_string(r.height);
+  j["posture"] = s.posture_test ? ordered_json(s.posture_threshold) : ordered_json("off");
+  j["view_deg"] = s.view_test ? ordered_json(s.view_deg) : ordered_json("off");
+  j["geometry_ms"] = r.geometry_ms;
+  j["impostor_ms"] = r.impostor_ms;
+  j["ratio"] = r.ratio;
+  j["speedup"] = r.ratio > 0 ? 1.0 / r.ratio : 0.0;
+  j["refresh_fraction"] = r.refresh_fraction;
+  j["psnr_db"] = r.psnr_db;
+  j["psnr_min_db"] = r.psnr_min_db;
+  j["ssim"] = r.ssim;
+  j["geometry_triangles_per_frame"] = r.geometry_triangles;
+  j["snapshot_triangles_per_frame"] = r.snapshot_triangles;
+  j["atlas_pages_used"] = r.atlas_pages;
+  j["atlas_pixel_use"] = r.atlas_pixel_use;
+  return j;
+}
+
+Status write_text(const std::string& path, const std::string& text) { return write_atomic(path, text); }
+
+// impostors | geometry, side by side (the paper's figure 7).
+std::vector<unsigned char> side_by_side(const FlowFrameImages& im, int w, int h) {
+  std::vector<unsigned char> out(static_cast<size_t>(2 * w) * h * 4);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      for (int k = 0; k < 4; ++k) {
+        // Over a light grey background so that the PNG reads well in any viewer.
+        auto over = [&](const std::vector<unsigned char>& src) -> unsigned char {
+          const unsigned char* p = &src[(static_cast<size_t>(y) * w + x) * 4];
+          if (k == 3) return 255;
+          double a = p[3] / 255.0;
+          return static_cast<unsigned char>(p[k] * a + 235 * (1 - a) + 0.5);
+        };
+        out[(static_cast<size_t>(y) * 2 * w + x) * 4 + k] = im.impostor.empty() ? 0 : over(im.impostor);
+        out[(static_cast<size_t>(y) * 2 * w + w + x) * 4 + k] = im.geometry.empty() ? 0 : over(im.geometry);
+      }
+  return out;
+}
+
+int fail(const std::string& msg) {
+  std::cerr << "bodybuilder flow: " << msg << "\n";
+  return 1;
+}
+
+bool parse_threshold(const std::string& v, bool* on, float* value) {
+  if (v == "off") { *on = false; return true; }
+  char* end = nullptr;
+  float f = std::strtof(v.c_str(), &end);
+  if (!end || *end || !(f >= 0)) return false;
+  *on = true;
+  *value = f;
+  return true;
+}
+
+int run(const FlowArgs& a) {
+  FlowSettings s;
+  s.humans = a.humans;
+  s.frames = a.frames;
+  if (std::sscanf(a.size.c_str(), "%dx%d", &s.width, &s.height) != 2 || s.width < 16 || s.height < 16 ||
+      s.width > 8192 || s.height > 8192)
+    return fail("--size: expected WxH, e.g. 1280x1024 (got \"" + a.size + "\")");
+  if (a.mode == "geometry") s.impostor = false;
+  else if (a.mode == "impostor") s.geometry = false;
+  else if (a.mode != "both") return fail("--mode: expected geometry, impostor or both (got \"" + a.mode + "\")");
+  if (!parse_threshold(a.posture, &s.posture_test, &s.posture_threshold))
+    return fail("--posture: expected a relative threshold >= 0 or off (got \"" + a.posture + "\")");
+  if (!parse_threshold(a.view, &s.view_test, &s.view_deg))
+    return fail("--view: expected degrees >= 0 or off (got \"" + a.view + "\")");
+  if (!a.sweep.empty() && a.sweep != "posture" && a.sweep != "view")
+    return fail("--sweep: expected posture or view (got \"" + a.sweep + "\")");
+  if (!a.sweep.empty() && a.mode != "both") return fail("--sweep needs --mode both");
+  s.distance_weighting = a.distance_weighting;
+  s.orbit_deg_per_s = a.orbit;
+  s.keep_frames = {0, s.frames / 2};
+
+  auto ctx = runtime::HeadlessContext::create();
+  if (!ctx) return fail(ctx.error().message());
+  std::string device = (*ctx)->description();
+  std::string model_path = a.model;
+  if (model_path.empty()) {
+    auto p = default_flow_model(a.out);
+    if (!p) return fail(p.error().message());
+    model_path = *p;
+  }
+  auto model = runtime::load_model(model_path);
+  if (!model) return fail(model.error().message());
+  if (!a.json) std::fprintf(stderr, "flow: %s, %d humans, %d frames at %dx%d on %s\n", model_path.c_str(), s.humans,
+                            s.frames, s.width, s.height, device.c_str());
+
+  ordered_json report;
+  auto result = run_flow(*model, s, device);
+  if (!result) return fail(result.error().message());
+  report = to_json(*result, s);
+  report["model"] = model_path;
+  report["device"] = device;
+  std::vector<std::string> written;
+  for (const auto& im : result->images) {
+    if (im.geometry.empty() && im.impostor.empty()) continue;
+    std::string p = (fs::path(a.out) / ("frame_" + std::to_string(im.frame) + "_impostors_vs_geometry.png")).string();
+    auto img = side_by_side(im, s.width, s.height);
+    if (auto st = write_png(p, 2 * s.width, s.height, img.data()); !st) return fail(st.error().message());
+    written.push_back(p);
+  }
+
+  // Sweeps: the paper's graphs 1 and 2, extended with the refresh fraction and image quality.
+  if (!a.sweep.empty()) {
+    bool posture = a.sweep == "posture";
+    std::vector<float> values = posture ? std::vector<float>{0, 0.05f, 0.1f, 0.2f, 0.4f, 0.6f, 0.8f, 1.0f}
+                                        : std::vector<float>{0, 1, 2, 3, 5, 8, 12, 17, 20, 30};
+    ordered_json sweep = ordered_json::array();
+    std::ostringstream csv;
+    csv << "threshold,geometry_ms,impostor_ms,ratio,speedup,refresh_fraction,psnr_db,ssim\n";
+    Series ratio{"impostor time / geometry time", {}, {}, 0xd62728}, refresh{"refresh fraction", {}, {}, 0x1f77b4};
+    Series psnr{"PSNR (dB)", {}, {}, 0x2ca02c};
+    FlowSettings ss = s;
+    ss.keep_frames.clear();
+    for (float v : values) {
+      if (posture) { ss.posture_test = true; ss.posture_threshold = v; ss.view_test = false; }
+      else { ss.view_test = true; ss.view_deg = v; ss.posture_test = false; }
+      auto r = run_flow(*model, ss, device);
+      if (!r) return fail(r.error().message());
+      ordered_json j = to_json(*r, ss);
+      j["threshold"] = v;
+      sweep.push_back(j);
+      csv << v << "," << r->geometry_ms << "," << r->impostor_ms << "," << r->ratio << ","
+          << (r->ratio > 0 ? 1 / r->ratio : 0) << "," << r->refresh_fraction << "," << r->psnr_db << "," << r->ssim
+          << "\n";
+      ratio.x.push_back(v);
+      ratio.y.push_back(r->ratio);
+      refresh.x.push_back(v);
+      refresh.y.push_back(r->refresh_fraction);
+      psnr.x.push_back(v);
+      psnr.y.push_back(r->psnr_db);
+      if (!a.json)
+        std::fprintf(stderr, "  %s %-5g  ratio %.3f  refresh %.3f  PSNR %.1f dB\n", a.sweep.c_str(), v, r->ratio,
+                     r->refresh_fraction, r->psnr_db);
+    }
+    report["sweep"] = sweep;
+    std::string base = (fs::path(a.out) / ("sweep_" + a.sweep)).string();
+    Chart c;
+    c.title = posture ? "Posture threshold (view test off): time normalized to geometry"
+                      : "View-angle threshold (posture test off): time normalized to geometry";
+    c.x_label = posture ? "posture threshold (relative change of squared joint distances)" : "view threshold (degrees)";
+    c.y_label = "impostor time / geometry time; refresh fraction";
+    c.series = {ratio, refresh};
+    c.hlines = {1.0};
+    auto img = render_chart(c, 1000, 600);
+    Chart q;
+    q.title = posture ? "Image quality against the posture threshold" : "Image quality against the view threshold";
+    q.x_label = c.x_label;
+    q.y_label = "PSNR over covered pixels (dB)";
+    q.series = {psnr};
+    auto qimg = render_chart(q, 1000, 600);
+    for (auto st : {write_text(base + ".csv", csv.str()), write_text(base + ".json", sweep.dump(2) + "\n"),
+                    write_png(base + ".png", 1000, 600, img.data()),
+                    write_png(base + "_quality.png", 1000, 600, qimg.data())})
+      if (!st) return fail(st.error().message());
+    for (auto ext : {".csv", ".json", ".png", "_quality.png"}) written.push_back(base + ext);
+  }
+
+  // Scaling: both paths from 20 to 10,000 humans.
+  if (a.scaling) {
+    std::vector<int> counts;
+    std::stringstream ls(a.scaling_list);
+    for (std::string item; std::getline(ls, item, ',');) counts.push_back(std::atoi(item.c_str()));
+    ordered_json scaling = ordered_json::array();
+    std::ostringstream csv;
+    csv << "humans,geometry_ms,impostor_ms,ratio,speedup,refresh_fraction\n";
+    Series g{"geometry (ms/frame)", {}, {}, 0xd62728}, im{"impostors (ms/frame)", {}, {}, 0x1f77b4};
+    for (int n : counts) {
+      if (n <= 0) return fail("--scaling-humans: expected positive counts");
+      FlowSettings ss = s;
+      ss.humans = n;
+      ss.frames = a.scaling_frames;
+      ss.keep_frames.clear();
+      ss.quality_every = 0;
+      auto r = run_flow(*model, ss, device);
+      if (!r) return fail(r.error().message());
+      ordered_json j = to_json(*r, ss);
+      scaling.push_back(j);
+      csv << n << "," << r->geometry_ms << "," << r->impostor_ms << "," << r->ratio << ","
+          << (r->ratio > 0 ? 1 / r->ratio : 0) << "," << r->refresh_fraction << "\n";
+      g.x.push_back(n);
+      g.y.push_back(r->geometry_ms);
+      im.x.push_back(n);
+      im.y.push_back(r->impostor_ms);
+      if (!a.json)
+        std::fprintf(stderr, "  humans %-6d geometry %.2f ms  impostors %.2f ms  speed-up %.2fx\n", n, r->geometry_ms,
+                     r->impostor_ms, r->ratio > 0 ? 1 / r->ratio : 0);
+    }
+    report["scaling"] = scaling;
+    std::string base = (fs::path(a.out) / "scaling").string();
+    Chart c;
+    c.title = "Frame time against the number of humans";
+    c.x_label = "humans";
+    c.y_label = "milliseconds per frame";
+    c.log_x = c.log_y = true;
+    c.series = {g, im};
+    auto img = render_chart(c, 1000, 600);
+    for (auto st : {write_text(base + ".csv", csv.str()), write_text(base + ".json", scaling.dump(2) + "\n"),
+                    write_png(base + ".png", 1000, 600, img.data())})
+      if (!st) return fail(st.error().message());
+    for (auto ext : {".csv", ".json", ".png"}) written.push_back(base + ext);
+  }
+  report["files"] = written;
+  std::string json_path = (fs::path(a.out) / "flow.json").string();
+  if (auto st = write_text(json_path, report.dump(2) + "\n"); !st) return fail(st.error().message());
+  if (a.json) {
+    std::cout << report.dump() << "\n";
+  } else {
+    std::printf("flow: %d humans, %d frames, %dx%d, %s\n", s.humans, s.frames, s.width, s.height, device.c_str());
+    if (s.geometry) std::printf("  geometry   %8.2f ms/frame\n", result->geometry_ms);
+    if (s.impostor)
+      std::printf("  impostors  %8.2f ms/frame  (refresh fraction %.3f)\n", result->impostor_ms,
+                  result->refresh_fraction);
+    if (s.geometry && s.impostor)
+      std::printf("  ratio      %8.3f  (speed-up %.2fx), PSNR %.1f dB, SSIM %.3f\n", result->ratio,
+                  result->ratio > 0 ? 1 / result->ratio : 0, result->psnr_db, result->ssim);
+    std::printf("  wrote %s\n", json_path.c_str());
+    for (const auto& p : written) std::printf("  wrote %s\n", p.c_str());
+  }
+  return 0;
+}
+
+void add_flow_command(CLI::App& app, int* status) {
+  auto* cmd = app.add_subcommand("flow", "The paper's human flow test bed: humans walking in circles, geometry vs impostors");
+  auto a = std::make_shared<FlowArgs>();
+  cmd->add_option("--model", a->model, "Skinned glTF/GLB to use (default: the built-in body's LOD set)");
+  cmd->add_option("--humans", a->humans, "Number of humans")->capture_default_str()->check(CLI::Range(1, 100000));
+  cmd->add_option("--frames", a->frames, "Measured frames")->capture_default_str()->check(CLI::Range(1, 100000));
+  cmd->add_option("--size", a->size, "Scene window WxH")->capture_default_str();
+  cmd->add_option("--mode", a->mode, "geometry, impostor or both (same frames, interleaved)")->capture_default_str();
+  cmd->add_option("--posture", a->posture, "Posture threshold (relative) or off")->capture_default_str();
+  cmd->add_option("--view", a->view, "View-angle threshold in degrees or off")->capture_default_str();
+  cmd->add_flag("--distance-weighting", a->distance_weighting, "Weight both thresholds by distance to the viewer");
+  cmd->add_option("--orbit", a->orbit, "Camera orbit speed, degrees per second")->capture_default_str();
+  cmd->add_option("--sweep", a->sweep, "Sweep the posture threshold (view off) or the view threshold (posture off)");
+  cmd->add_flag("--scaling", a->scaling, "Also measure both paths from 20 to 10,000 humans");
+  cmd->add_option("--scaling-humans", a->scaling_list, "Crowd sizes of --scaling")->capture_default_str();
+  cmd->add_option("--scaling-frames", a->scaling_frames, "Frames per crowd size of --scaling")->capture_default_str();
+  cmd->add_option("-o,--output", a->out, "Output folder")->capture_default_str();
+  cmd->add_flag("--json", a->json, "Print the report as one JSON object on stdout");
+  cmd->callback([=] { *status = run(*a); });
+}
+
+const Registrar registrar(40, add_flow_command);
+
+}  // namespace
+}  // namespace bb::cli

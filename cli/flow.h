@@ -1,0 +1,61 @@
+// The paper's human flow test bed (section 6), used by `bodybuilder flow` and `bodybuilder demo`.
+//
+// N humans walk on concentric circles at different constant speeds, all in view of a camera
+// that may orbit. Each frame is planned and drawn by the geometry path and by the impostor path
+// (same scene time, interleaved in one run); a frame's time is the CPU planning plus the GPU work
+// to completion (glFinish), so both paths are measured alike. Impostor frames are compared with
+// the geometry frame of the same instant (PSNR over covered pixels, SSIM).
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "bb/runtime/crowd.h"
+#include "bb/runtime/model.h"
+#include "bb/result.h"
+
+namespace bb::cli {
+
+struct FlowSettings {
+  int humans = 20;
+  int frames = 120;            // measured frames (after `warmup` frames)
+  int warmup = 3;
+  int width = 1280, height = 1024;
+  float fps = 30.0f;           // scene time step 1/fps per frame
+  bool geometry = true, impostor = true;
+  bool posture_test = true;
+  float posture_threshold = 0.4f;
+  bool view_test = true;
+  float view_deg = 8.0f;
+  bool distance_weighting = false;
+  float orbit_deg_per_s = 0.0f;  // camera orbit speed
+  int quality_every = 4;         // compare images every k-th measured frame
+  int clip = -1;                 // -1: a clip named like "walk" if any, else 0
+  float clip_speed_mps = 0;      // speed the clip walks at; 0: from the clip name "..._1.20mps" or none
+  std::vector<int> keep_frames;  // measured frame indices whose images are returned
+};
+
+struct FlowFrameImages {
+  int frame = 0;
+  std::vector<unsigned char> geometry, impostor;  // RGBA8, rows top to bottom
+};
+
+struct FlowResult {
+  int humans = 0, frames = 0, width = 0, height = 0;
+  double geometry_ms = 0, impostor_ms = 0;  // mean per frame
+  double ratio = 0;                         // impostor / geometry
+  double refresh_fraction = 0;              // mean snapshots / impostors
+  double psnr_db = 0, ssim = 0;             // means over compared frames
+  double psnr_min_db = 0;
+  double geometry_triangles = 0, snapshot_triangles = 0;  // mean per frame
+  double atlas_pixel_use = 0;
+  int atlas_pages = 0;
+  std::string device;
+  std::vector<FlowFrameImages> images;
+};
+
+// Runs the test bed on `model` (must have a current GL context). `device` names the GL renderer.
+Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& settings, const std::string& device);
+
+}  // namespace bb::cli

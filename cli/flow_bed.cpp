@@ -1,0 +1,188 @@
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cctype>
+#include <limits>
+
+#include "bb/runtime/renderer.h"
+#include "flow.h"
+#include "image_metrics.h"
+
+namespace bb::cli {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+struct Walker {
+  float radius, omega, theta0, speed;
+  int dir;
+};
+
+int choose_clip(const runtime::Model& model, int wanted) {
+  if (wanted >= 0) return wanted < static_cast<int>(model.clips.size()) ? wanted : 0;
+  for (size_t i = 0; i < model.clips.size(); ++i) {
+    std::string n = model.clips[i].name;
+    std::transform(n.begin(), n.end(), n.begin(), [](unsigned char c) { return std::tolower(c); });
+    if (n.find("walk") != std::string::npos) return static_cast<int>(i);
+  }
+  return 0;
+}
+
+// "walk_1.20mps" -> 1.2; 0 when the name carries no speed.
+float speed_from_name(const std::string& name) {
+  auto p = name.find("mps");
+  if (p == std::string::npos) return 0;
+  size_t b = p;
+  while (b > 0 && (std::isdigit(static_cast<unsigned char>(name[b - 1])) || name[b - 1] == '.')) --b;
+  if (b == p) return 0;
+  return std::strtof(name.substr(b, p - b).c_str(), nullptr);
+}
+
+}  // namespace
+
+Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, const std::string& device) {
+  using namespace runtime;
+  FlowResult out;
+  out.humans = s.humans;
+  out.frames = s.frames;
+  out.width = s.width;
+  out.height = s.height;
+  out.device = device;
+
+  ImpostorConfig config;
+  config.cache.posture_test = s.posture_test;
+  config.cache.posture_threshold = s.posture_threshold;
+  config.cache.view_test = s.view_test;
+  config.cache.view_threshold_deg = s.view_deg;
+  config.cache.distance_weighting = s.distance_weighting;
+  // Enough atlas for the crowd: windows of 256 px, 16 per 1024 page.
+  config.max_pages = std::clamp(s.humans / 8 + 4, 8, 64);
+  auto renderer = Renderer::create(model, config);
+  if (!renderer) return renderer.error();
+  FramePlanner planner(model, config);
+  auto target_g = OffscreenTarget::create(s.width, s.height);
+  if (!target_g) return target_g.error();
+  auto target_i = OffscreenTarget::create(s.width, s.height);
+  if (!target_i) return target_i.error();
+
+  // The crowd: concentric circles, a few humans per circle, speeds 0.6 .. 1.8 m/s, alternate
+  // directions. Circles are spaced so that neighbours do not collide.
+  const int clip = model.clips.empty() ? 0 : choose_clip(model, s.clip);
+  float clip_speed = s.clip_speed_mps > 0 ? s.clip_speed_mps
+                                          : (model.clips.empty() ? 0.0f : speed_from_name(model.clips[clip].name));
+  float size = std::max(model.radius * 2.0f, 0.1f);     // the character's extent, metres
+  float model_height = std::max(model.bounds_max.y - model.bounds_min.y, 0.1f);
+  int per_ring = std::max(4, static_cast<int>(std::ceil(std::sqrt(static_cast<float>(s.humans)))));
+  int rings = (s.humans + per_ring - 1) / per_ring;
+  std::vector<Walker> walkers;
+  Crowd crowd(model);
+  crowd.reserve(s.humans);
+  float unit = model_height / 1.75f;  // scale the scene to the model: 1 "human metre"
+  for (int i = 0; i < s.humans; ++i) {
+    int ring = i % rings, k = i / rings;
+    Walker w;
+    w.radius = (2.0f + 1.6f * ring) * unit + 0.5f * size;
+    w.speed = (0.6f + 1.2f * std::fmod(i * 0.6180339f, 1.0f)) * unit;
+    w.dir = (ring % 2 == 0) ? 1 : -1;
+    w.omega = w.dir * w.speed / w.radius;
+    w.theta0 = 6.2831853f * (k + 0.37f * ring) / per_ring;
+    walkers.push_back(w);
+    Character c;
+    c.clip = clip;
+    c.phase = 0.7f * i;
+    c.speed = clip_speed > 0 ? w.speed / (clip_speed * unit) : 1.0f;
+    crowd.add(c);
+  }
+  float outer = walkers.empty() ? 2.0f : (2.0f + 1.6f * (rings - 1)) * unit + size;
+  SceneCamera cam;
+  cam.width = s.width;
+  cam.height = s.height;
+  cam.fov_y = 0.7854f;
+  cam.target = {0, 0.45f * model_height, 0};
+  float cam_dist = outer * 2.3f + model_height;
+  float cam_height = outer * 1.0f + model_height;
+  cam.near_plane = 0.05f * unit;
+  cam.far_plane = cam_dist * 4;
+
+  double g_ms = 0, i_ms = 0, refresh = 0, psnr_sum = 0, ssim_sum = 0, tri_g = 0, tri_s = 0, atlas_use = 0;
+  double psnr_min = std::numeric_limits<double>::infinity();
+  int compared = 0, atlas_pages = 0;
+  const int total = s.warmup + s.frames;
+  for (int f = 0; f < total; ++f) {
+    float t = f / s.fps;
+    for (int i = 0; i < s.humans; ++i) {
+      const Walker& w = walkers[i];
+      float th = w.theta0 + w.omega * t;
+      Character& c = crowd[i];
+      c.position = {w.radius * std::cos(th), 0, w.radius * std::sin(th)};
+      // Heading along the circle: d/dt of the position.
+      glm::vec2 v(-std::sin(th) * w.dir, std::cos(th) * w.dir);
+      c.yaw = std::atan2(v.x, v.y);
+    }
+    float orbit = glm::radians(s.orbit_deg_per_s) * t;
+    cam.eye = {cam_dist * std::sin(orbit), cam_height, cam_dist * std::cos(orbit)};
+    bool measured = f >= s.warmup;
+    int mf = f - s.warmup;
+    bool compare = measured && s.geometry && s.impostor && s.quality_every > 0 && mf % s.quality_every == 0;
+    bool keep = measured && std::find(s.keep_frames.begin(), s.keep_frames.end(), mf) != s.keep_frames.end();
+    FlowFrameImages imgs;
+    imgs.frame = mf;
+    if (s.geometry) {
+      (*target_g)->bind(true);
+      gpu_finish();
+      auto t0 = Clock::now();
+      const FramePlan& plan = planner.plan(crowd, cam, t, RenderMode::kGeometry);
+      (*renderer)->draw(plan);
+      gpu_finish();
+      double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+      if (measured) {
+        g_ms += ms;
+        tri_g += plan.stats.geometry_triangles;
+      }
+      if (compare || keep) imgs.geometry = (*target_g)->read_rgba();
+    }
+    if (s.impostor) {
+      (*target_i)->bind(true);
+      gpu_finish();
+      auto t0 = Clock::now();
+      const FramePlan& plan = planner.plan(crowd, cam, t, RenderMode::kImpostor);
+      (*renderer)->draw(plan);
+      gpu_finish();
+      double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+      if (measured) {
+        i_ms += ms;
+        refresh += plan.stats.refresh_fraction;
+        tri_s += plan.stats.snapshot_triangles;
+        atlas_use += plan.stats.atlas_pixel_use;
+        atlas_pages = std::max(atlas_pages, plan.stats.atlas_pages_used);
+      }
+      if (compare || keep) imgs.impostor = (*target_i)->read_rgba();
+    }
+    if (compare) {
+      double p = psnr_covered(imgs.geometry.data(), imgs.impostor.data(), s.width, s.height);
+      double q = ssim_covered(imgs.geometry.data(), imgs.impostor.data(), s.width, s.height);
+      if (std::isinf(p)) p = 99.0;
+      psnr_sum += p;
+      ssim_sum += q;
+      psnr_min = std::min(psnr_min, p);
+      ++compared;
+    }
+    if (keep) out.images.push_back(std::move(imgs));
+  }
+  int n = std::max(1, s.frames);
+  out.geometry_ms = s.geometry ? g_ms / n : 0;
+  out.impostor_ms = s.impostor ? i_ms / n : 0;
+  out.ratio = (s.geometry && s.impostor && g_ms > 0) ? i_ms / g_ms : 0;
+  out.refresh_fraction = s.impostor ? refresh / n : 0;
+  out.psnr_db = compared ? psnr_sum / compared : 0;
+  out.psnr_min_db = compared ? psnr_min : 0;
+  out.ssim = compared ? ssim_sum / compared : 0;
+  out.geometry_triangles = tri_g / n;
+  out.snapshot_triangles = tri_s / n;
+  out.atlas_pixel_use = atlas_use / n;
+  out.atlas_pages = atlas_pages;
+  return out;
+}
+
+}  // namespace bb::cli
