@@ -7,6 +7,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <utility>
+#include <vector>
 
 #include <glm/glm.hpp>
 
@@ -24,6 +26,7 @@ struct MeshCheck {
   size_t degenerate_triangles = 0; // zero area or repeated index
   double area_m2 = 0;
   double volume_m3 = 0;            // signed; > 0 for a closed, outward-oriented mesh
+  std::vector<std::pair<uint32_t, uint32_t>> intersecting;  // first (up to 64) intersecting triangle pairs
   bool ok() const { return closed && manifold && oriented && self_intersections == 0; }
 };
 

@@ -24,25 +24,27 @@
 
 namespace bb::mesher {
 
-// Sample density of one body part: `contours` rings per skeleton link along the part's axis and
-// `points` samples per ring (rays around the axis). Caps at the ends of a part use about
-// points / 4 extra rings.
+// Sample density of one limb or the torso: `contours` rings per skeleton link along the part's
+// axis (the torso counts three links: lumbar, thoracic, cervical) and `points` samples per ring
+// (rays around the axis). The closed start of a part (shoulder, hip, pelvis) gets a cap of about
+// points / 4 latitude rings cast from the first ring's centre.
 struct PartDensity {
-  int contours = 8;   // rings per link, >= 2
+  int contours = 8;   // rings per link, >= 1
   int points = 16;    // samples per ring, >= 4
 };
 
 // One level of detail.
 struct LodDensity {
-  PartDensity torso{12, 24};  // pelvis to neck (one axis along the spine)
-  PartDensity arm{8, 12};     // per arm link: upper arm, forearm
-  PartDensity leg{8, 14};     // per leg link: thigh, shank
-  PartDensity hand{4, 10};    // contour-sampled hand ("mitten"), when !vdb_extremities
-  PartDensity foot{6, 10};    // contour-sampled foot, when !vdb_extremities
-  PartDensity head{8, 16};    // contour-sampled head, when !vdb_extremities
+  PartDensity torso{12, 40};  // pelvis to the neck seam
+  PartDensity arm{12, 20};    // shoulder to the wrist seam (2 links)
+  PartDensity leg{12, 24};    // hip to the ankle seam (2 links)
+  // Contour-sampled extremities (when !vdb_extremities): latitude rings of the star-shaped
+  // "cup" cast from the centre of the hand, foot or head; each ring has as many points as the
+  // limb ring it continues (arm, leg, torso points).
+  int hand_rings = 8, foot_rings = 10, head_rings = 10;
   // true: head, hands and feet are the full-resolution OpenVDB meshes, tagged in
   // SkinnedMesh::part and zipped along SkinnedMesh::seam loops (decimation works on them);
-  // false: they are contour-sampled like the limbs (self-contained coarse LODs).
+  // false: they are contour-sampled cups (self-contained coarse levels; part/seam still tagged).
   bool vdb_extremities = false;
   float screen_coverage = 0;  // MSFT_screencoverage of this level (fraction of screen height)
 };

@@ -50,6 +50,9 @@ struct LodReport {
   double hausdorff_rel = 0, mean_rel = 0;    // the same over body height
   bool closed = false, manifold = false, oriented = false, self_intersections = true;
   double seconds = 0;                        // time to build this LOD
+  bool vdb_extremities = false;              // head, hands, feet are full-resolution OpenVDB meshes
+  size_t extremity_triangles = 0;            // triangles whose vertices are all one extremity part
+  size_t self_intersection_count = 0;        // pairs of intersecting triangles (0 when clean)
 };
 
 struct Lod {

@@ -1,0 +1,973 @@
+// Section 3.1 of the paper: contours circle each limb link, rays are cast star-shaped from the
+// link, the outermost crossing is a sample; one surface sampled at several densities gives
+// look-alike levels of detail.
+//
+// Each level is assembled from five closed pieces: the torso (pelvis to head) and four limbs
+// (shoulder to hand, hip to foot). A piece is a chain of rings around its axis (a radial graph,
+// so it cannot fold however concave the skin), closed at its start by a cap cast from the first
+// ring's centre and at its end by the extremity: either a star-shaped "cup" cast from the centre
+// of the hand, foot or head, or the full-resolution OpenVDB mesh cut at the seam plane and
+// zipped to the last ring. CGAL corefinement unites the five pieces into one closed 2-manifold.
+#include "bb/mesher/mesher.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <numeric>
+#include <random>
+#include <thread>
+#include <unordered_map>
+
+#include <glm/gtc/constants.hpp>
+
+#include "bb/mesher/mesh_check.h"
+#include "bb/modeler/implicit_surface.h"
+#include "internal.h"
+
+namespace bb::mesher {
+
+using detail::Extremity;
+using detail::PieceMesh;
+using detail::PlainMesh;
+using detail::SubField;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+thread_local StageTimes g_times;
+
+// Skinning regions: which bones a vertex may follow.
+enum Region : int8_t { kTorso, kArmL, kArmR, kLegL, kLegR, kHead, kHandL, kHandR, kFootL, kFootR, kRegions };
+
+struct Bone {
+  int joint;
+  glm::vec3 a, b;  // bind-posture segment, metres
+};
+
+// One ring of samples around an axis point.
+struct Ring {
+  std::vector<uint32_t> ids;   // vertex indices in the piece mesh
+  std::vector<float> angles;   // radians around the axis, increasing, in [a0, a0 + 2 pi)
+};
+
+struct Frame {
+  glm::vec3 c, t, u, v;  // centre, tangent, ring axes (v = t x u)
+};
+
+// What one piece needs, independent of the level of detail.
+struct PieceSpec {
+  std::vector<glm::vec3> axis;  // polyline from the start joint to the seam point
+  int links = 2;
+  int8_t region = kTorso, ext_region = kHead;
+  MeshPart ext_part = MeshPart::kHead;
+  std::vector<int> prims;
+  glm::vec3 cup_center{0}, cup_pole{0};
+  float ext_voxel = 0.004f;
+  modeler::Aabb ext_box;
+  std::unique_ptr<SubField> field;
+  Extremity vdb;          // OpenVDB extremity (when some level needs it)
+  Frame seam_frame;       // frame of the seam ring (for zipping angles)
+};
+
+float wrap_angle(float a) {
+  const float two_pi = glm::two_pi<float>();
+  a = std::fmod(a, two_pi);
+  return a < 0 ? a + two_pi : a;
+}
+
+// Point and smoothed tangent at arc length s along a polyline.
+Frame frame_at(const std::vector<glm::vec3>& axis, float s) {
+  auto point = [&](float x) {
+    x = std::max(0.0f, x);
+    for (size_t i = 0; i + 1 < axis.size(); ++i) {
+      float len = glm::distance(axis[i], axis[i + 1]);
+      if (x <= len || i + 2 == axis.size()) return axis[i] + (axis[i + 1] - axis[i]) * std::min(1.0f, x / len);
+      x -= len;
+    }
+    return axis.back();
+  };
+  float total = 0;
+  for (size_t i = 0; i + 1 < axis.size(); ++i) total += glm::distance(axis[i], axis[i + 1]);
+  Frame f;
+  f.c = point(s);
+  const float w = 0.06f;
+  glm::vec3 a = point(std::max(0.0f, s - w)), b = point(std::min(total, s + w));
+  f.t = glm::normalize(b - a);
+  return f;
+}
+
+float axis_length(const std::vector<glm::vec3>& axis) {
+  float total = 0;
+  for (size_t i = 0; i + 1 < axis.size(); ++i) total += glm::distance(axis[i], axis[i + 1]);
+  return total;
+}
+
+// Ring frames along the axis, parallel-transported u.
+std::vector<Frame> ring_frames(const std::vector<glm::vec3>& axis, int rings) {
+  std::vector<Frame> out;
+  float total = axis_length(axis);
+  for (int k = 0; k < rings; ++k) {
+    Frame f = frame_at(axis, total * float(k) / float(rings - 1));
+    glm::vec3 u;
+    if (out.empty()) {
+      // Start with the body's forward (+Z) or, for a forward axis, up (+Y).
+      glm::vec3 ref = std::abs(f.t.z) < 0.9f ? glm::vec3(0, 0, 1) : glm::vec3(0, 1, 0);
+      u = ref - glm::dot(ref, f.t) * f.t;
+    } else {
+      u = out.back().u - glm::dot(out.back().u, f.t) * f.t;
+    }
+    f.u = glm::normalize(u);
+    f.v = glm::cross(f.t, f.u);
+    out.push_back(f);
+  }
+  return out;
+}
+
+float sample_ray(const SubField& field, const glm::vec3& o, const glm::vec3& d, float max_t, float fallback) {
+  auto t = field.outermost(o, d, max_t);
+  return t ? *t : fallback;
+}
+
+// The piece's own skin is crossed at t_own; the whole skin may continue beyond it where
+// primitives of neighbouring pieces blend in (armpit, shoulder, groin). Follow the ray through
+// the whole skin and take its first exit if it comes within `margin`. If the ray is still inside
+// the skin there, it has run into the blend with a neighbouring piece: end it at that depth so
+// that the piece reaches into the neighbour and the union fills the crease between them (the
+// point is inside the skin; the neighbour's piece covers it).
+// Only the torso lands on the blend (`land` = true); limbs either keep their own skin or go deep,
+// so that no two pieces sample the same stretch of skin (near-coincident surfaces make the
+// union's intersection curves degenerate).
+thread_local const SubField* g_whole = nullptr;
+float extend_to_whole(const glm::vec3& o, const glm::vec3& d, float t_own, float margin, bool land = true) {
+  if (!g_whole) return t_own;
+  const float h = 0.002f;
+  float t = t_own;
+  for (float end = t_own + margin; t < end;) {
+    float tn = std::min(end, t + h);
+    if (g_whole->field(o + tn * d) < modeler::kIso) {
+      if (!land) return t_own;
+      float a = t, b = tn;
+      for (int i = 0; i < 20; ++i) {
+        float mid = 0.5f * (a + b);
+        if (g_whole->field(o + mid * d) >= modeler::kIso) a = mid; else b = mid;
+      }
+      return 0.5f * (a + b);
+    }
+    t = tn;
+  }
+  return t_own + margin;
+}
+
+// Triangles between two rings (b further along the piece): quads when the rings match,
+// otherwise a zipper that advances on whichever ring has the smaller next angle.
+void strip(const Ring& a, const Ring& b, std::vector<uint32_t>& idx) {
+  const size_t n = a.ids.size(), m = b.ids.size();
+  if (n == m) {
+    for (size_t k = 0; k < n; ++k) {
+      size_t k1 = (k + 1) % n;
+      idx.insert(idx.end(), {a.ids[k], a.ids[k1], b.ids[k1], a.ids[k], b.ids[k1], b.ids[k]});
+    }
+    return;
+  }
+  const float two_pi = glm::two_pi<float>();
+  auto ang = [&](const Ring& r, size_t i) { return i < r.angles.size() ? r.angles[i] : r.angles[0] + two_pi; };
+  // Align b to start at the vertex nearest a's first angle.
+  size_t i = 0, j = 0;
+  while (i < n || j < m) {
+    bool advance_a = j == m || (i < n && ang(a, i + 1) < ang(b, j + 1));
+    if (advance_a) {
+      idx.insert(idx.end(), {a.ids[i % n], a.ids[(i + 1) % n], b.ids[j % m]});
+      ++i;
+    } else {
+      idx.insert(idx.end(), {a.ids[i % n], b.ids[(j + 1) % m], b.ids[j % m]});
+      ++j;
+    }
+  }
+}
+
+void fan(uint32_t pole, const Ring& r, bool pole_after, std::vector<uint32_t>& idx) {
+  const size_t n = r.ids.size();
+  for (size_t k = 0; k < n; ++k) {
+    size_t k1 = (k + 1) % n;
+    if (pole_after) idx.insert(idx.end(), {r.ids[k], r.ids[k1], pole});
+    else idx.insert(idx.end(), {pole, r.ids[k1], r.ids[k]});
+  }
+}
+
+// A ring of `points` samples cast from f.c in the plane of f.
+Ring cast_ring(const SubField& field, const Frame& f, int points, PieceMesh& mesh, uint8_t part, uint8_t seam,
+               int8_t region, std::vector<float>* radii = nullptr, bool extend = false, bool land = true) {
+  Ring r;
+  float prev = 0.005f;
+  for (int k = 0; k < points; ++k) {
+    float th = glm::two_pi<float>() * float(k) / float(points);
+    glm::vec3 d = std::cos(th) * f.u + std::sin(th) * f.v;
+    float t = sample_ray(field, f.c, d, 1.0f, prev);
+    prev = t;
+    if (extend) t = extend_to_whole(f.c, d, t, 0.6f * t, land);
+    if (radii) radii->push_back(t);
+    r.ids.push_back(mesh.add(f.c + t * d, part, seam, region));
+    r.angles.push_back(th);
+  }
+  return r;
+}
+
+// Cap of latitude rings cast from f.c, away from the piece (-t when `backwards`).
+// Returns rings from the one next to `rim` out to the last, and sets *pole.
+std::vector<Ring> cast_cap(const SubField& field, const Frame& f, int points, int lat, bool backwards,
+                           PieceMesh& mesh, int8_t region, uint32_t* pole, bool land, bool extend) {
+  std::vector<Ring> rings;
+  glm::vec3 axis = backwards ? -f.t : f.t;
+  for (int j = 1; j < lat; ++j) {
+    float phi = glm::half_pi<float>() * float(j) / float(lat);
+    Ring r;
+    for (int k = 0; k < points; ++k) {
+      float th = glm::two_pi<float>() * float(k) / float(points);
+      glm::vec3 d = std::cos(phi) * (std::cos(th) * f.u + std::sin(th) * f.v) + std::sin(phi) * axis;
+      float t = sample_ray(field, f.c, d, 1.0f, 0.005f);
+      if (extend) t = extend_to_whole(f.c, d, t, 0.6f * t, land);
+      r.ids.push_back(mesh.add(f.c + t * d, uint8_t(MeshPart::kBody), 0, region));
+      r.angles.push_back(th);
+    }
+    rings.push_back(std::move(r));
+  }
+  float t = sample_ray(field, f.c, axis, 1.0f, 0.005f);
+  *pole = mesh.add(f.c + t * axis, uint8_t(MeshPart::kBody), 0, region);
+  return rings;
+}
+
+// Contour-sampled extremity: latitude rings cast from the cup centre, from the directions of
+// the rim (the seam ring) to the pole, only beyond the seam plane.
+void cast_cup(const SubField& field, const PieceSpec& spec, const Frame& seam, const Ring& rim, int lat,
+              PieceMesh& mesh, std::vector<uint32_t>& idx) {
+  const glm::vec3 c = spec.cup_center, pole = glm::normalize(spec.cup_pole);
+  const uint8_t part = uint8_t(spec.ext_part);
+  std::vector<glm::vec3> d0;
+  for (uint32_t id : rim.ids) d0.push_back(glm::normalize(mesh.positions[id] - c));
+  auto slerp = [](glm::vec3 a, glm::vec3 b, float s) {
+    float cosang = glm::clamp(glm::dot(a, b), -1.0f, 1.0f);
+    float ang = std::acos(cosang);
+    if (ang < 1e-4f) return a;
+    if (ang > glm::pi<float>() - 1e-3f) {  // opposite: go around through an orthogonal direction
+      glm::vec3 o = glm::normalize(glm::cross(a, glm::abs(a.x) < 0.9f ? glm::vec3(1, 0, 0) : glm::vec3(0, 1, 0)));
+      return glm::normalize(std::cos(ang * s) * a + std::sin(ang * s) * o);
+    }
+    return glm::normalize((std::sin((1 - s) * ang) * a + std::sin(s * ang) * b) / std::sin(ang));
+  };
+  auto cast = [&](size_t k, float s) {
+    glm::vec3 d = slerp(d0[k], pole, s);
+    // Only the part of the ray beyond the seam plane counts.
+    float dn = glm::dot(d, seam.t), max_t = 1.0f;
+    float sc = glm::dot(c - seam.c, seam.t);
+    if (dn < -1e-6f) max_t = std::min(max_t, sc / -dn);
+    return c + sample_ray(field, c, d, max_t, 0.005f) * d;
+  };
+  // Latitudes evenly spaced in arc length along the meridians (averaged), so that long parts
+  // (toes, fingers) get their share of rings whatever the density.
+  const int fine = 48;
+  std::vector<double> arc(fine + 1, 0.0);
+  for (size_t k = 0; k < d0.size(); ++k) {
+    glm::vec3 prev_p = mesh.positions[rim.ids[k]];
+    for (int i = 1; i <= fine; ++i) {
+      glm::vec3 p = cast(k, float(i) / fine);
+      arc[i] += glm::distance(p, prev_p);
+      prev_p = p;
+    }
+  }
+  for (int i = 1; i <= fine; ++i) arc[i] += arc[i - 1];
+  auto s_at = [&](double target) {
+    int i = 1;
+    while (i < fine && arc[i] < target) ++i;
+    double a0 = arc[i - 1], a1 = arc[i];
+    double f = a1 > a0 ? (target - a0) / (a1 - a0) : 0.0;
+    return float((i - 1 + f) / fine);
+  };
+  Ring prev = rim;
+  for (int j = 1; j < lat; ++j) {
+    float s = s_at(arc[fine] * j / lat);
+    Ring r;
+    for (size_t k = 0; k < d0.size(); ++k) {
+      r.ids.push_back(mesh.add(cast(k, s), part, 0, spec.ext_region));
+      r.angles.push_back(rim.angles[k]);
+    }
+    strip(prev, r, idx);
+    prev = std::move(r);
+  }
+  float t = sample_ray(field, c, pole, 1.0f, 0.005f);
+  uint32_t p = mesh.add(c + t * pole, part, 0, spec.ext_region);
+  fan(p, prev, true, idx);
+}
+
+// One closed piece at one density.
+PieceMesh build_piece(const PieceSpec& spec, const PartDensity& density, int cup_rings, bool vdb, float ring_gap) {
+  PieceMesh mesh;
+  const SubField& field = *spec.field;
+  const int rings = std::max(2, density.contours * spec.links + 1);
+  std::vector<glm::vec3> axis = spec.axis;
+  if (vdb) {
+    // Stop the rings `ring_gap` short of the seam plane; the zipper spans the gap.
+    glm::vec3 dir = glm::normalize(axis.back() - axis[axis.size() - 2]);
+    axis.back() -= ring_gap * dir;
+  }
+  std::vector<Frame> frames = ring_frames(axis, rings);
+  std::vector<uint32_t>& idx = mesh.indices;
+  // Start cap.
+  uint32_t pole = 0;
+  const bool land = spec.region == kTorso;
+  // Legs keep their own skin: the two thighs going deep into each other meet in mirrored,
+  // nearly coincident triangles at the body's midplane, which the union cannot round safely.
+  const bool extend = spec.region != kLegL && spec.region != kLegR;
+  Ring first = cast_ring(field, frames[0], density.points, mesh, uint8_t(MeshPart::kBody), 0, spec.region, nullptr,
+                         extend, land);
+  std::vector<Ring> cap = cast_cap(field, frames[0], density.points, std::max(2, density.points / 4), true, mesh,
+                                   spec.region, &pole, land, extend);
+  // Cap rings go from the equator (next to `first`) to the pole; seen along the piece they come
+  // before `first`, pole first.
+  {
+    const Ring* prev = nullptr;
+    for (int j = int(cap.size()) - 1; j >= 0; --j) {
+      if (!prev) fan(pole, cap[j], false, idx);
+      else strip(*prev, cap[j], idx);
+      prev = &cap[j];
+    }
+    if (prev) strip(*prev, first, idx);
+    else fan(pole, first, false, idx);
+  }
+  Ring prev = std::move(first);
+  for (int k = 1; k < rings; ++k) {
+    bool last = k == rings - 1;
+    // The last ring (at the seam) keeps the piece's own skin: the extremity is meshed from it.
+    Ring r = cast_ring(field, frames[k], density.points, mesh, uint8_t(MeshPart::kBody), last ? 1 : 0, spec.region,
+                       nullptr, !last && extend, land);
+    strip(prev, r, idx);
+    prev = std::move(r);
+  }
+  if (!vdb) {
+    cast_cup(field, spec, frames.back(), prev, cup_rings, mesh, idx);
+    return mesh;
+  }
+  // Zip the last ring to the OpenVDB extremity's border loop.
+  const Frame& sf = spec.seam_frame;
+  const Frame& lf = frames.back();
+  // Re-express the last ring's angles in the seam frame (same axis direction up to the smoothing).
+  for (size_t k = 0; k < prev.ids.size(); ++k) {
+    glm::vec3 d = mesh.positions[prev.ids[k]] - lf.c;
+    prev.angles[k] = std::atan2(glm::dot(d, sf.v), glm::dot(d, sf.u));
+  }
+  uint32_t base = uint32_t(mesh.positions.size());
+  for (size_t i = 0; i < spec.vdb.positions.size(); ++i)
+    mesh.add(spec.vdb.positions[i], uint8_t(spec.ext_part), 0, spec.ext_region);
+  for (uint32_t i : spec.vdb.indices) idx.push_back(base + i);
+  Ring loop;
+  for (uint32_t v : spec.vdb.loop) {
+    mesh.seam[base + v] = 1;
+    loop.ids.push_back(base + v);
+    glm::vec3 d = spec.vdb.positions[v] - sf.c;
+    loop.angles.push_back(std::atan2(glm::dot(d, sf.v), glm::dot(d, sf.u)));
+  }
+  // Both rings: start at the smallest angle, unwrap to increasing.
+  auto normalize_ring = [](Ring& r) {
+    size_t n = r.ids.size();
+    size_t start = 0;
+    for (size_t i = 1; i < n; ++i)
+      if (wrap_angle(r.angles[i]) < wrap_angle(r.angles[start])) start = i;
+    Ring o;
+    float a0 = wrap_angle(r.angles[start]), acc = a0;
+    for (size_t k = 0; k < n; ++k) {
+      size_t i = (start + k) % n;
+      if (k > 0) {
+        float d = r.angles[i] - r.angles[(start + k - 1) % n];
+        d = std::remainder(d, glm::two_pi<float>());
+        acc += d;
+      }
+      o.ids.push_back(r.ids[i]);
+      o.angles.push_back(acc);
+    }
+    r = std::move(o);
+  };
+  normalize_ring(prev);
+  normalize_ring(loop);
+  strip(prev, loop, idx);
+  return mesh;
+}
+
+// Skin weights: inverse fourth power of the distance to the region's bones, at most four,
+// normalized; smooth across joints because neighbouring bones are equally near there.
+void skin_vertex(const glm::vec3& p, const std::vector<Bone>& bones, const std::vector<int>& candidates,
+                 glm::u16vec4* joints, glm::vec4* weights) {
+  struct W { float w; int joint; };
+  W best[4] = {{0, 0}, {0, 0}, {0, 0}, {0, 0}};
+  std::unordered_map<int, float> per_joint;
+  for (int b : candidates) {
+    const Bone& bone = bones[b];
+    glm::vec3 ab = bone.b - bone.a;
+    float len2 = glm::dot(ab, ab);
+    float t = len2 > 0 ? glm::clamp(glm::dot(p - bone.a, ab) / len2, 0.0f, 1.0f) : 0.0f;
+    glm::vec3 dp = p - (bone.a + t * ab);
+    float d2 = glm::dot(dp, dp) + 1e-6f;
+    float w = 1.0f / (d2 * d2);
+    float& pj = per_joint[bone.joint];
+    pj = std::max(pj, w);
+  }
+  for (const auto& [j, w] : per_joint) {
+    W cand{w, j};
+    for (int k = 0; k < 4; ++k)
+      if (cand.w > best[k].w) std::swap(cand, best[k]);
+  }
+  float sum = 0;
+  for (auto& b : best) sum += b.w;
+  // Drop influences under 1 %, renormalize.
+  float kept = 0;
+  for (auto& b : best) {
+    if (b.w < 0.01f * sum) b = {0, 0};
+    kept += b.w;
+  }
+  for (int k = 0; k < 4; ++k) {
+    (*joints)[k] = uint16_t(best[k].w > 0 ? best[k].joint : 0);
+    (*weights)[k] = best[k].w / kept;
+  }
+  // Exact sum of one in float.
+  float s = (*weights)[0] + (*weights)[1] + (*weights)[2] + (*weights)[3];
+  (*weights)[0] += 1.0f - s;
+}
+
+struct BodyModel {
+  std::unique_ptr<modeler::ImplicitSurface> surface;
+  std::unique_ptr<SubField> whole;
+  std::vector<PieceSpec> pieces;  // torso, arm L, arm R, leg L, leg R
+  std::vector<Bone> bones;
+  std::vector<std::vector<int>> region_bones;  // per Region
+  float height = 1.75f;
+};
+
+Result<BodyModel> analyse(const modeler::Body& body) {
+  BodyModel m;
+  if (!body.skeleton) return Error{"", body.name, "the body has no skeleton"};
+  if (body.primitives.empty()) return Error{"", body.name, "the body has no primitives"};
+  const modeler::Skeleton& sk = *body.skeleton;
+  const auto& joints = sk.joints();
+  std::unordered_map<std::string, int> id;
+  const char* required[] = {"sacroiliac", "vl5", "vt10", "vc7", "skullbase", "skull_tip",
+                            "l_sternoclavicular", "l_shoulder", "l_elbow", "l_wrist", "l_middle1", "l_middle_tip",
+                            "r_sternoclavicular", "r_shoulder", "r_elbow", "r_wrist", "r_middle1", "r_middle_tip",
+                            "l_hip", "l_knee", "l_ankle", "l_metatarsophalangeal", "l_toe_tip",
+                            "r_hip", "r_knee", "r_ankle", "r_metatarsophalangeal", "r_toe_tip"};
+  for (const char* n : required) {
+    int j = sk.find_joint(n);
+    if (j < 0) return Error{"", "skeleton " + sk.name, std::string("the mesher needs joint \"") + n + "\""};
+    id[n] = j;
+  }
+  modeler::Posture posture = sk.posture(body.sample_posture);
+  m.surface = std::make_unique<modeler::ImplicitSurface>(body, posture);
+  m.whole = std::make_unique<SubField>(*m.surface);
+  const auto& world = m.surface->joint_transforms();
+  auto pos = [&](const char* n) { return glm::vec3(world[id.at(n)][3]); };
+  m.height = body.height();
+  const float scale = m.height / 1.75f;
+  auto descends = [&](int j, int ancestor) {
+    for (; j >= 0; j = joints[j].parent)
+      if (j == ancestor) return true;
+    return false;
+  };
+  // Primitive ownership: limb roots take their descendants, the torso the rest.
+  const int limb_root[4] = {id["l_shoulder"], id["r_shoulder"], id["l_hip"], id["r_hip"]};
+  std::vector<int> owner(body.primitives.size(), 0);
+  for (size_t i = 0; i < body.primitives.size(); ++i)
+    for (int l = 0; l < 4; ++l)
+      if (descends(body.primitives[i].joint, limb_root[l])) owner[i] = 1 + l;
+
+  // Bones: a segment per joint with children (to its chain child, or the mean of its children).
+  auto add_bone = [&](int joint, glm::vec3 a, glm::vec3 b) {
+    m.bones.push_back({joint, a, b});
+    return int(m.bones.size() - 1);
+  };
+  auto bone_of = [&](int j) {
+    std::vector<int> kids;
+    for (size_t c = 0; c < joints.size(); ++c)
+      if (joints[c].parent == j) kids.push_back(int(c));
+    glm::vec3 a(world[j][3]), b(0);
+    for (int c : kids) b += glm::vec3(world[c][3]);
+    b = kids.empty() ? a : b / float(kids.size());
+    return add_bone(j, a, b);
+  };
+  m.region_bones.assign(kRegions, {});
+  int b_sacro = add_bone(id["sacroiliac"], pos("sacroiliac"), pos("vl5"));
+  int b_vl5 = add_bone(id["vl5"], pos("vl5"), pos("vt10"));
+  int b_vt10 = add_bone(id["vt10"], pos("vt10"), pos("vc7"));
+  int b_vc7 = add_bone(id["vc7"], pos("vc7"), pos("skullbase"));
+  int b_skull = add_bone(id["skullbase"], pos("skullbase"), pos("skull_tip"));
+  m.region_bones[kTorso] = {b_sacro, b_vl5, b_vt10, b_vc7, b_skull};
+  m.region_bones[kHead] = {b_vc7, b_skull};
+  for (int side = 0; side < 2; ++side) {
+    std::string s = side == 0 ? "l_" : "r_";
+    auto J = [&](const char* n) { return id.at(s + n); };
+    auto P = [&](const char* n) { return pos((s + n).c_str()); };
+    int b_sc = add_bone(J("sternoclavicular"), P("sternoclavicular"), P("shoulder"));
+    int b_sh = add_bone(J("shoulder"), P("shoulder"), P("elbow"));
+    int b_el = add_bone(J("elbow"), P("elbow"), P("wrist"));
+    int b_wr = add_bone(J("wrist"), P("wrist"), P("middle1"));
+    int b_hip = add_bone(J("hip"), P("hip"), P("knee"));
+    int b_kn = add_bone(J("knee"), P("knee"), P("ankle"));
+    int b_an = add_bone(J("ankle"), P("ankle"), P("metatarsophalangeal"));
+    int b_mt = add_bone(J("metatarsophalangeal"), P("metatarsophalangeal"), P("toe_tip"));
+    m.region_bones[kTorso].insert(m.region_bones[kTorso].end(), {b_sc, b_hip});
+    m.region_bones[side == 0 ? kArmL : kArmR] = {b_sc, b_sh, b_el, b_wr};
+    auto& hand = m.region_bones[side == 0 ? kHandL : kHandR];
+    hand = {b_el, b_wr};
+    for (size_t j = 0; j < joints.size(); ++j)
+      if (int(j) != J("wrist") && descends(int(j), J("wrist"))) {
+        bool has_child = false;
+        for (const auto& c : joints) has_child |= c.parent == int(j);
+        if (has_child) hand.push_back(bone_of(int(j)));
+      }
+    m.region_bones[side == 0 ? kLegL : kLegR] = {b_sacro, b_hip, b_kn, b_an};
+    m.region_bones[side == 0 ? kFootL : kFootR] = {b_kn, b_an, b_mt};
+  }
+
+  // Pieces.
+  auto prims_of = [&](int o) {
+    std::vector<int> v;
+    for (size_t i = 0; i < owner.size(); ++i)
+      if (owner[i] == o) v.push_back(int(i));
+    return v;
+  };
+  auto lerp = [](glm::vec3 a, glm::vec3 b, float t) { return a + t * (b - a); };
+  {
+    PieceSpec t;
+    t.axis = {pos("sacroiliac"), pos("vl5"), pos("vt10"), pos("vc7"), lerp(pos("vc7"), pos("skullbase"), 0.5f)};
+    t.links = 3;
+    t.region = kTorso;
+    t.ext_region = kHead;
+    t.ext_part = MeshPart::kHead;
+    t.prims = prims_of(0);
+    t.cup_center = lerp(pos("skullbase"), pos("skull_tip"), 0.45f);
+    t.cup_pole = pos("skull_tip") - pos("skullbase");
+    t.ext_voxel = 0.006f * scale;
+    m.pieces.push_back(std::move(t));
+  }
+  for (int side = 0; side < 2; ++side) {
+    std::string s = side == 0 ? "l_" : "r_";
+    auto P = [&](const char* n) { return pos((s + n).c_str()); };
+    PieceSpec a;
+    // The arm starts at the sternoclavicular joint and sees the clavicle and trapezius too: it
+    // overlaps the torso at every density (the union always joins them) and carries the blend
+    // of the deltoid into the shoulder.
+    a.axis = {P("sternoclavicular"), P("shoulder"), P("elbow"), lerp(P("elbow"), P("wrist"), 0.92f)};
+    a.links = 2;
+    a.region = side == 0 ? kArmL : kArmR;
+    a.ext_region = side == 0 ? kHandL : kHandR;
+    a.ext_part = side == 0 ? MeshPart::kLeftHand : MeshPart::kRightHand;
+    a.prims = prims_of(1 + side);
+    for (size_t i = 0; i < body.primitives.size(); ++i)
+      if (body.primitives[i].joint == id.at(s + "sternoclavicular")) a.prims.push_back(int(i));
+    a.cup_center = lerp(P("wrist"), P("middle1"), 0.55f);
+    a.cup_pole = P("middle_tip") - P("wrist");
+    a.ext_voxel = 0.003f * scale;
+    m.pieces.push_back(std::move(a));
+  }
+  for (int side = 0; side < 2; ++side) {
+    std::string s = side == 0 ? "l_" : "r_";
+    auto P = [&](const char* n) { return pos((s + n).c_str()); };
+    PieceSpec l;
+    glm::vec3 in = P("hip") - 0.06f * scale * glm::normalize(P("knee") - P("hip"));
+    l.axis = {in, P("hip"), P("knee"), lerp(P("knee"), P("ankle"), 0.86f)};
+    l.links = 2;
+    l.region = side == 0 ? kLegL : kLegR;
+    l.ext_region = side == 0 ? kFootL : kFootR;
+    l.ext_part = side == 0 ? MeshPart::kLeftFoot : MeshPart::kRightFoot;
+    l.prims = prims_of(3 + side);
+    // From just in front of the ankle the lower shank, heel, sole and toes are all in sight.
+    glm::vec3 c = lerp(P("ankle"), P("metatarsophalangeal"), 0.15f);
+    l.cup_center = c;
+    l.cup_pole = P("ankle") - P("knee");  // latitudes sweep from the rim down, not over the top
+    l.ext_voxel = 0.006f * scale;
+    m.pieces.push_back(std::move(l));
+  }
+  for (PieceSpec& p : m.pieces) {
+    if (p.prims.empty()) return Error{"", body.name, "a body piece has no primitives"};
+    p.field = std::make_unique<SubField>(*m.surface, p.prims);
+    std::vector<Frame> f = ring_frames(p.axis, 2);
+    p.seam_frame = f.back();
+  }
+  return m;
+}
+
+// The OpenVDB extremity of a piece: box around the primitives beyond the seam plane and the
+// seam ring's neighbourhood.
+Status build_vdb_extremity(PieceSpec& p, float voxel_scale) {
+  const Frame& sf = p.seam_frame;
+  modeler::Aabb box;
+  // Surface beyond the plane lies within the supports of the piece's primitives that reach
+  // past the plane; cut the box to the far side of the plane (plus a margin).
+  std::vector<float> radii;
+  PieceMesh scratch;
+  Frame f = sf;
+  cast_ring(*p.field, f, 32, scratch, 0, 0, 0, &radii);
+  float r = *std::max_element(radii.begin(), radii.end());
+  // Far extent: sample rays from the cup centre.
+  box.extend(sf.c - glm::vec3(1.4f * r));
+  box.extend(sf.c + glm::vec3(1.4f * r));
+  const int n = 24;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      float th = glm::two_pi<float>() * i / n, ph = glm::pi<float>() * (j + 0.5f) / n;
+      glm::vec3 d(std::sin(ph) * std::cos(th), std::cos(ph), std::sin(ph) * std::sin(th));
+      if (auto t = p.field->outermost(p.cup_center, d, 1.0f)) {
+        glm::vec3 q = p.cup_center + (*t) * d;
+        if (glm::dot(q - sf.c, sf.t) > 0) box.extend(q);
+      }
+    }
+  // Rays miss thin features: pad by 2 cm.
+  box.min -= glm::vec3(0.02f);
+  box.max += glm::vec3(0.02f);
+  auto e = detail::mesh_extremity(*p.field, box, p.ext_voxel * voxel_scale, sf.c, sf.t);
+  if (!e) return e.error();
+  p.vdb = std::move(*e);
+  return Ok{};
+}
+
+[[maybe_unused]] double distance_to_skin(const SubField& f, const glm::vec3& x) {
+  glm::vec3 y = f.project(x, 0.2f, 20);
+  glm::vec3 g;
+  float v = f.field_gradient(y, &g) - modeler::kIso;
+  double d = glm::distance(x, y);
+  // Not converged (flat field): fall back to the first-order estimate.
+  if (std::abs(v) > 1e-3f) {
+    glm::vec3 g0;
+    float v0 = f.field_gradient(x, &g0) - modeler::kIso;
+    float gl = glm::length(g0);
+    if (gl > 1e-6f) d = std::max(d, double(std::abs(v0) / gl));
+  }
+  return d;
+}
+
+// The union can leave a tiny closed bubble where an extended ray enclosed a pocket of the
+// blend outside the neighbour; drop components under 1 % of the triangles (never a limb).
+void drop_small_components(PlainMesh& m) {
+  const size_t nv = m.positions.size(), nt = m.indices.size() / 3;
+  std::vector<int> parent(nv);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int x) { while (parent[x] != x) x = parent[x] = parent[parent[x]]; return x; };
+  for (size_t t = 0; t < nt; ++t) {
+    parent[find(int(m.indices[3 * t + 1]))] = find(int(m.indices[3 * t]));
+    parent[find(int(m.indices[3 * t + 2]))] = find(int(m.indices[3 * t]));
+  }
+  std::unordered_map<int, size_t> size;
+  for (size_t t = 0; t < nt; ++t) ++size[find(int(m.indices[3 * t]))];
+  if (size.size() < 2) return;
+  std::vector<uint32_t> kept;
+  for (size_t t = 0; t < nt; ++t)
+    if (size[find(int(m.indices[3 * t]))] * 100 >= nt)
+      kept.insert(kept.end(), m.indices.begin() + 3 * t, m.indices.begin() + 3 * t + 3);
+  // Unreferenced vertices are compacted away.
+  std::vector<int64_t> map(nv, -1);
+  PlainMesh out;
+  for (uint32_t& i : kept) {
+    if (map[i] < 0) { map[i] = int64_t(out.positions.size()); out.positions.push_back(m.positions[i]); }
+    i = uint32_t(map[i]);
+  }
+  out.indices = std::move(kept);
+  m = std::move(out);
+}
+
+}  // namespace
+
+std::vector<LodDensity> default_lod_chain() {
+  std::vector<LodDensity> c(4);
+  // LOD 0: dense contours and the full-resolution OpenVDB extremities.
+  c[0].torso = {12, 40};
+  c[0].arm = {12, 20};
+  c[0].leg = {12, 24};
+  c[0].vdb_extremities = true;
+  c[0].screen_coverage = 0.5f;
+  c[1].torso = {8, 28};
+  c[1].arm = {7, 14};
+  c[1].leg = {7, 16};
+  c[1].hand_rings = 5, c[1].foot_rings = 6, c[1].head_rings = 7;
+  c[1].screen_coverage = 0.25f;
+  c[2].torso = {5, 18};
+  c[2].arm = {4, 10};
+  c[2].leg = {4, 10};
+  c[2].hand_rings = 3, c[2].foot_rings = 4, c[2].head_rings = 5;
+  c[2].screen_coverage = 0.1f;
+  c[3].torso = {3, 10};
+  c[3].arm = {2, 6};
+  c[3].leg = {2, 6};
+  c[3].hand_rings = 2, c[3].foot_rings = 2, c[3].head_rings = 3;
+  c[3].screen_coverage = 0.02f;
+  return c;
+}
+
+const StageTimes& last_stage_times() { return g_times; }
+
+Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptions& options) {
+  g_times = {};
+  const std::vector<LodDensity> chain = options.lods.empty() ? default_lod_chain() : options.lods;
+  for (size_t i = 0; i < chain.size(); ++i) {
+    const LodDensity& d = chain[i];
+    for (const PartDensity* p : {&d.torso, &d.arm, &d.leg})
+      if (p->contours < 1 || p->points < 4)
+        return Error{"", "lods[" + std::to_string(i) + "]", "contours must be >= 1 and points >= 4"};
+    if (d.hand_rings < 1 || d.foot_rings < 1 || d.head_rings < 1)
+      return Error{"", "lods[" + std::to_string(i) + "]", "extremity rings must be >= 1"};
+  }
+  auto t0 = Clock::now();
+  auto model = analyse(body);
+  if (!model) return model.error();
+  BodyModel& m = *model;
+  g_whole = m.whole.get();
+  g_times.field = since(t0);
+
+  bool any_vdb = std::any_of(chain.begin(), chain.end(), [](const LodDensity& d) { return d.vdb_extremities; });
+  std::vector<double> extremity_error(m.pieces.size(), 0);
+  if (any_vdb) {
+    t0 = Clock::now();
+    // Five extremities on two cores.
+    std::vector<Status> st(m.pieces.size(), Ok{});
+    std::thread worker([&] {
+      for (size_t i = 0; i < m.pieces.size(); i += 2) st[i] = build_vdb_extremity(m.pieces[i], 1.0f);
+    });
+    for (size_t i = 1; i < m.pieces.size(); i += 2) st[i] = build_vdb_extremity(m.pieces[i], 1.0f);
+    worker.join();
+    for (size_t i = 0; i < st.size(); ++i)
+      if (!st[i]) return Error{"", body.name + ": extremity " + std::to_string(i), st[i].error().reason};
+    g_times.extremities = since(t0);
+  }
+
+  // The reference skin for the error report: OpenVDB at a fine voxel, vertices on the skin.
+  PlainMesh reference;
+  std::vector<glm::vec3> reference_points;
+  if (options.error_samples > 0) {
+    t0 = Clock::now();
+    reference = detail::reference_mesh(*m.whole, 0.005f * m.height / 1.75f);
+    reference_points = reference.positions;
+    if (reference_points.size() > size_t(options.error_samples)) {
+      std::mt19937 rng(7);
+      std::shuffle(reference_points.begin(), reference_points.end(), rng);
+      reference_points.resize(options.error_samples);
+    }
+    g_times.errors += since(t0);
+  }
+
+  std::vector<Lod> lods;
+  for (size_t level = 0; level < chain.size(); ++level) {
+    const LodDensity& d = chain[level];
+    auto lod_start = Clock::now();
+    t0 = Clock::now();
+    std::vector<PieceMesh> pieces;
+    for (size_t i = 0; i < m.pieces.size(); ++i) {
+      const PieceSpec& spec = m.pieces[i];
+      const PartDensity& pd = i == 0 ? d.torso : (i < 3 ? d.arm : d.leg);
+      int cup = i == 0 ? d.head_rings : (i < 3 ? d.hand_rings : d.foot_rings);
+      float spacing = axis_length(spec.axis) / float(pd.contours * spec.links);
+      float gap = std::max(0.003f * m.height / 1.75f, 0.35f * spacing);
+      pieces.push_back(build_piece(spec, pd, cup, d.vdb_extremities, gap));
+    }
+    g_times.contours += since(t0);
+
+    t0 = Clock::now();
+    std::vector<PlainMesh> plain;
+    for (const PieceMesh& p : pieces) plain.push_back({p.positions, p.indices});
+    if (std::getenv("BB_MESHER_DEBUG"))
+      for (size_t i = 0; i < pieces.size(); ++i) {
+        MeshCheck c = check_mesh(pieces[i].positions, pieces[i].indices, true);
+        std::fprintf(stderr, "lod %zu piece %zu: closed %d manifold %d oriented %d self-x %zu\n", level, i, c.closed,
+                     c.manifold, c.oriented, c.self_intersections);
+        for (size_t k = 0; k < std::min<size_t>(c.intersecting.size(), 4); ++k) {
+          glm::vec3 a = pieces[i].positions[pieces[i].indices[3 * c.intersecting[k].first]];
+          std::fprintf(stderr, "   at (%.3f %.3f %.3f)\n", a.x, a.y, a.z);
+        }
+      }
+    auto joined = detail::mesh_union(plain);
+    if (!joined) return Error{"", body.name + ": lods[" + std::to_string(level) + "]", joined.error().message()};
+    drop_small_components(*joined);
+    g_times.joining += since(t0);
+
+    // Attributes: original vertices by exact position, new (intersection) vertices from their
+    // neighbours.
+    t0 = Clock::now();
+    Lod lod;
+    SkinnedMesh& mesh = lod.mesh;
+    mesh.positions = std::move(joined->positions);
+    mesh.indices = std::move(joined->indices);
+    const size_t nv = mesh.positions.size();
+    struct Attr { uint8_t part, seam; int8_t region; };
+    auto key = [](const glm::vec3& p) {
+      uint32_t b[3];
+      std::memcpy(b, &p, 12);
+      return (uint64_t(b[0]) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(b[1]) * 0xC2B2AE3D27D4EB4Full) ^ b[2];
+    };
+    std::unordered_multimap<uint64_t, std::pair<glm::vec3, Attr>> lookup;
+    for (const PieceMesh& p : pieces)
+      for (size_t i = 0; i < p.positions.size(); ++i)
+        lookup.emplace(key(p.positions[i]), std::make_pair(p.positions[i], Attr{p.part[i], p.seam[i], p.region[i]}));
+    mesh.part.assign(nv, 0);
+    mesh.seam.assign(nv, 0);
+    mesh.joints.assign(nv, glm::u16vec4(0));
+    mesh.weights.assign(nv, glm::vec4(0));
+    std::vector<char> known(nv, 0);
+    for (size_t i = 0; i < nv; ++i) {
+      auto range = lookup.equal_range(key(mesh.positions[i]));
+      for (auto it = range.first; it != range.second; ++it)
+        if (it->second.first == mesh.positions[i]) {
+          const Attr& a = it->second.second;
+          mesh.part[i] = a.part;
+          mesh.seam[i] = a.seam;
+          skin_vertex(mesh.positions[i], m.bones, m.region_bones[a.region], &mesh.joints[i], &mesh.weights[i]);
+          known[i] = 1;
+          break;
+        }
+    }
+    // New vertices: blend the neighbours' weights (a few passes reach vertices next to new ones).
+    std::vector<std::vector<uint32_t>> nbr(nv);
+    for (size_t t = 0; t < mesh.indices.size(); t += 3)
+      for (int e = 0; e < 3; ++e) nbr[mesh.indices[t + e]].push_back(mesh.indices[t + (e + 1) % 3]);
+    for (int pass = 0; pass < 8; ++pass) {
+      bool all = true;
+      for (size_t i = 0; i < nv; ++i) {
+        if (known[i]) continue;
+        std::unordered_map<int, float> acc;
+        int count = 0;
+        for (uint32_t j : nbr[i])
+          if (known[j] == 1) {
+            ++count;
+            for (int k = 0; k < 4; ++k)
+              if (mesh.weights[j][k] > 0) acc[mesh.joints[j][k]] += mesh.weights[j][k];
+          }
+        if (count == 0) { all = false; continue; }
+        std::vector<std::pair<float, int>> w;
+        for (auto& [j, x] : acc) w.push_back({x, j});
+        std::sort(w.rbegin(), w.rend());
+        w.resize(std::min<size_t>(4, w.size()));
+        float sum = 0;
+        for (auto& x : w) sum += x.first;
+        for (size_t k = 0; k < 4; ++k) {
+          mesh.joints[i][k] = uint16_t(k < w.size() ? w[k].second : 0);
+          mesh.weights[i][k] = k < w.size() ? w[k].first / sum : 0.0f;
+        }
+        float s = mesh.weights[i][0] + mesh.weights[i][1] + mesh.weights[i][2] + mesh.weights[i][3];
+        mesh.weights[i][0] += 1.0f - s;
+        known[i] = 2;
+      }
+      for (auto& k : known)
+        if (k == 2) k = 1;
+      if (all) break;
+    }
+    // Normals from the field's gradient; face normals where the gradient vanishes.
+    mesh.normals.assign(nv, glm::vec3(0));
+    std::vector<glm::vec3> face_n(nv, glm::vec3(0));
+    for (size_t t = 0; t < mesh.indices.size(); t += 3) {
+      const glm::vec3 &a = mesh.positions[mesh.indices[t]], &b = mesh.positions[mesh.indices[t + 1]],
+                      &c = mesh.positions[mesh.indices[t + 2]];
+      glm::vec3 n = glm::cross(b - a, c - a);
+      for (int k = 0; k < 3; ++k) face_n[mesh.indices[t + k]] += n;
+    }
+    for (size_t i = 0; i < nv; ++i) {
+      glm::vec3 g;
+      m.whole->field_gradient(mesh.positions[i], &g);
+      glm::vec3 n = -g;
+      float len = glm::length(n);
+      glm::vec3 fn = face_n[i];
+      if (len < 1e-4f || glm::dot(n, fn) < 0) n = fn, len = glm::length(fn);
+      mesh.normals[i] = len > 0 ? n / len : glm::vec3(0, 1, 0);
+    }
+    g_times.skinning += since(t0);
+    double build_seconds = since(lod_start);
+
+    LodReport& r = lod.report;
+    r.level = int(level);
+    r.triangles = mesh.triangle_count();
+    r.vertices = nv;
+    r.vdb_extremities = d.vdb_extremities;
+    for (size_t t = 0; t < mesh.indices.size(); t += 3) {
+      uint8_t p0 = mesh.part[mesh.indices[t]];
+      if (p0 != 0 && mesh.part[mesh.indices[t + 1]] == p0 && mesh.part[mesh.indices[t + 2]] == p0)
+        ++r.extremity_triangles;
+    }
+    if (options.check_topology) {
+      t0 = Clock::now();
+      MeshCheck c = check_mesh(mesh.positions, mesh.indices, true);
+      r.closed = c.closed && c.connected_components == 1;
+      r.manifold = c.manifold;
+      r.oriented = c.oriented;
+      r.self_intersections = c.self_intersections > 0;
+      r.self_intersection_count = c.self_intersections;
+      g_times.checks += since(t0);
+    }
+    if (!reference_points.empty()) {
+      t0 = Clock::now();
+      // Mesh -> skin: vertices and area samples, exact distance to the reference skin mesh;
+      // skin -> mesh: reference points' exact distance to this mesh.
+      std::vector<glm::vec3> pts(mesh.positions);
+      std::mt19937 rng(11);
+      std::uniform_real_distribution<float> u(0, 1);
+      size_t nt = mesh.triangle_count();
+      for (int s = 0; s < options.error_samples; ++s) {
+        size_t t = std::min(nt - 1, size_t(u(rng) * nt));
+        float r1 = std::sqrt(u(rng)), r2 = u(rng);
+        const glm::vec3 &a = mesh.positions[mesh.indices[3 * t]], &b = mesh.positions[mesh.indices[3 * t + 1]],
+                        &c = mesh.positions[mesh.indices[3 * t + 2]];
+        pts.push_back((1 - r1) * a + r1 * (1 - r2) * b + r1 * r2 * c);
+      }
+      std::vector<double> d1(pts.size()), d2(reference_points.size());
+      distances_to_mesh(reference.positions, reference.indices, pts, d1);
+      distances_to_mesh(mesh.positions, mesh.indices, reference_points, d2);
+      double h1 = *std::max_element(d1.begin(), d1.end()), h2 = *std::max_element(d2.begin(), d2.end());
+      r.hausdorff_m = std::max(h1, h2);
+      r.mean_m = 0.5 * (std::accumulate(d1.begin(), d1.end(), 0.0) / double(d1.size()) +
+                        std::accumulate(d2.begin(), d2.end(), 0.0) / double(d2.size()));
+      r.hausdorff_rel = r.hausdorff_m / m.height;
+      r.mean_rel = r.mean_m / m.height;
+      if (std::getenv("BB_MESHER_DEBUG")) {
+        size_t i1 = std::max_element(d1.begin(), d1.end()) - d1.begin();
+        size_t i2 = std::max_element(d2.begin(), d2.end()) - d2.begin();
+        std::fprintf(stderr, "lod %zu: mesh->skin max %.4f at (%.3f %.3f %.3f); skin->mesh max %.4f at (%.3f %.3f %.3f)\n",
+                     level, h1, pts[i1].x, pts[i1].y, pts[i1].z, h2, reference_points[i2].x, reference_points[i2].y,
+                     reference_points[i2].z);
+      }
+      g_times.errors += since(t0);
+    }
+    if (std::getenv("BB_MESHER_DEBUG") && options.check_topology) {
+      MeshCheck c = check_mesh(mesh.positions, mesh.indices, true);
+      if (c.connected_components > 1) {
+        std::vector<int> comp(nv, -1);
+        std::vector<std::vector<uint32_t>> adj(nv);
+        for (size_t t = 0; t < mesh.indices.size(); t += 3)
+          for (int e = 0; e < 3; ++e) adj[mesh.indices[t + e]].push_back(mesh.indices[t + (e + 1) % 3]);
+        int nc = 0;
+        for (size_t i = 0; i < nv; ++i) {
+          if (comp[i] >= 0) continue;
+          std::vector<uint32_t> st{uint32_t(i)};
+          comp[i] = nc;
+          size_t cnt = 0;
+          glm::vec3 sum(0);
+          while (!st.empty()) {
+            uint32_t v = st.back(); st.pop_back(); ++cnt; sum += mesh.positions[v];
+            for (uint32_t w : adj[v]) if (comp[w] < 0) { comp[w] = nc; st.push_back(w); }
+          }
+          std::fprintf(stderr, "  component %d: %zu vertices around (%.3f %.3f %.3f)\n", nc, cnt, sum.x / cnt, sum.y / cnt, sum.z / cnt);
+          ++nc;
+        }
+      }
+      std::fprintf(stderr, "lod %zu: components %zu border %zu nm-edges %zu nm-verts %zu degenerate %zu\n", level,
+                   c.connected_components, c.border_edges, c.non_manifold_edges, c.non_manifold_vertices,
+                   c.degenerate_triangles);
+      for (size_t k = 0; k < std::min<size_t>(c.intersecting.size(), 12); ++k) {
+        glm::vec3 a = mesh.positions[mesh.indices[3 * c.intersecting[k].first]];
+        std::fprintf(stderr, "lod %zu: self-intersection near (%.3f %.3f %.3f) parts %d\n", level, a.x, a.y, a.z,
+                     int(mesh.part[mesh.indices[3 * c.intersecting[k].first]]));
+      }
+    }
+    r.seconds = build_seconds;
+    lod.screen_coverage = d.screen_coverage;
+    lods.push_back(std::move(lod));
+  }
+  return lods;
+}
+
+}  // namespace bb::mesher
