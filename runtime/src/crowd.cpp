@@ -147,6 +147,28 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
           cs.view = view;
           cs.posture = posture;
           cs.half_size = sc.half_size;
+          cs.rect = glm::vec4(-1, -1, 1, 1);
+          if (config_.tight_quads) {
+            // Project the corners of this frame's pose box on the snapshot plane (window units).
+            const auto& b0 = bc.bounds[f0];
+            const auto& b1 = bc.bounds[f1];
+            const glm::vec3 lo = glm::min(b0[0], b1[0]) * ch.scale, hi = glm::max(b0[1], b1[1]) * ch.scale;
+            glm::vec2 rmin(1e30f), rmax(-1e30f);
+            for (int k = 0; k < 8; ++k) {
+              const glm::vec3 p((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
+              const glm::vec3 d = ch.position + glm::vec3(cy * p.x + sy * p.z, p.y, -sy * p.x + cy * p.z) - ta;
+              float s = 1.0f / sc.half_size;
+              if (sc.perspective) s *= sc.distance / std::max(sc.distance + glm::dot(d, sc.vo), 1e-3f * sc.distance);
+              const glm::vec2 q(glm::dot(d, sc.ho) * s, glm::dot(d, sc.uo) * s);
+              rmin = glm::min(rmin, q);
+              rmax = glm::max(rmax, q);
+            }
+            // Whole texels, one texel of margin, inside the window.
+            const float texel = 2.0f / static_cast<float>(win.size);
+            rmin = glm::clamp(glm::floor(rmin / texel - 1.0f) * texel, -1.0f, 1.0f);
+            rmax = glm::clamp(glm::ceil(rmax / texel + 1.0f) * texel, -1.0f, 1.0f);
+            cs.rect = glm::vec4(rmin, rmax);
+          }
           SnapshotGpu s;
           s.instance = inst;
           s.ho_half = glm::vec4(sc.ho, sc.half_size);
@@ -155,6 +177,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
           s.ta = glm::vec4(ta, radius);
           const float half = static_cast<float>(win.size) / page;  // NDC half extent = size / page
           s.window = glm::vec4(-1.0f + (2.0f * win.x + win.size) / page, -1.0f + (2.0f * win.y + win.size) / page, half, 0.0f);
+          s.rect = cs.rect;
           plan_.snapshots[win.page].push_back(s);
           plan_.page_lod[win.page] = window_lod[win.size_class];
           ++st.snapshots;
@@ -163,7 +186,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
         plan_.billboards.push_back(BillboardGpu{
             glm::vec4(ta, cs.half_size),
             glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
-            glm::vec4(static_cast<float>(win.page), 0.0f, 0.0f, 0.0f)});
+            glm::vec4(static_cast<float>(win.page), 0.0f, 0.0f, 0.0f), cs.rect});
         ++st.impostors;
         ++st.impostors_per_window[win.size_class];
       }

@@ -62,6 +62,7 @@ layout(location = 8) in vec4 i_uo_dist;
 layout(location = 9) in vec4 i_vo;
 layout(location = 10) in vec4 i_ta;
 layout(location = 11) in vec4 i_window;
+layout(location = 12) in vec4 i_rect;
 out float gl_ClipDistance[4];
 void main() {
   vec3 d = skin_world() - i_ta.xyz;
@@ -77,10 +78,11 @@ void main() {
     c = vec4(xy, clamp(depth / r, -1.0, 1.0), 1.0);
   }
   gl_Position = vec4(i_window.xy * c.w + c.xy * i_window.z, c.z, c.w);
-  gl_ClipDistance[0] = c.w + c.x;
-  gl_ClipDistance[1] = c.w - c.x;
-  gl_ClipDistance[2] = c.w + c.y;
-  gl_ClipDistance[3] = c.w - c.y;
+  // Only inside the part of the window that was cleared.
+  gl_ClipDistance[0] = c.x - i_rect.x * c.w;
+  gl_ClipDistance[1] = i_rect.z * c.w - c.x;
+  gl_ClipDistance[2] = c.y - i_rect.y * c.w;
+  gl_ClipDistance[3] = i_rect.w * c.w - c.y;
 }
 )";
 
@@ -104,9 +106,10 @@ void main() {
 
 const char* kClearVs = R"(#version 450 core
 layout(location = 11) in vec4 i_window;
+layout(location = 12) in vec4 i_rect;
 out float gl_ClipDistance[4];
 void main() {
-  vec2 c = vec2(gl_VertexID & 1, gl_VertexID >> 1) * 2.0 - 1.0;
+  vec2 c = mix(i_rect.xy, i_rect.zw, vec2(gl_VertexID & 1, gl_VertexID >> 1));
   gl_Position = vec4(i_window.xy + c * i_window.z, 1.0, 1.0);
   for (int k = 0; k < 4; ++k) gl_ClipDistance[k] = 1.0;
 }
@@ -121,12 +124,13 @@ const char* kBillboardVs = R"(#version 450 core
 layout(location = 0) in vec4 i_ta_half;
 layout(location = 1) in vec4 i_uv;
 layout(location = 2) in vec4 i_layer;
+layout(location = 3) in vec4 i_rect;
 uniform mat4 u_viewproj;
 uniform vec3 u_eye;
 uniform vec3 u_up;
 out vec3 v_uvl;
 void main() {
-  vec2 c = vec2(gl_VertexID & 1, gl_VertexID >> 1) * 2.0 - 1.0;
+  vec2 c = mix(i_rect.xy, i_rect.zw, vec2(gl_VertexID & 1, gl_VertexID >> 1));
   vec3 ta = i_ta_half.xyz;
   vec3 vo = normalize(ta - u_eye);
   vec3 h = cross(vo, u_up);
@@ -229,9 +233,15 @@ struct Renderer::Impl {
   std::vector<SnapshotGpu> snapshot_scratch;
   glm::vec3 light = glm::normalize(glm::vec3(0.4f, 0.8f, 0.6f));
 
+  struct ShadeLocations {
+    GLint color = -1, cutoff = -1;
+  } shade_geometry, shade_snapshot;
+  GLint loc_bb_viewproj = -1, loc_bb_eye = -1, loc_bb_up = -1, loc_bb_blend = -1;
+
   void set_material(GLuint prog, const Material& m) {
-    glProgramUniform4fv(prog, glGetUniformLocation(prog, "u_color"), 1, glm::value_ptr(m.base_color));
-    glProgramUniform1f(prog, glGetUniformLocation(prog, "u_cutoff"), m.alpha_mask ? m.alpha_cutoff : -1.0f);
+    const ShadeLocations& l = prog == prog_geometry ? shade_geometry : shade_snapshot;
+    glProgramUniform4fv(prog, l.color, 1, glm::value_ptr(m.base_color));
+    glProgramUniform1f(prog, l.cutoff, m.alpha_mask ? m.alpha_cutoff : -1.0f);
     glBindTextureUnit(1, m.texture >= 0 ? textures[m.texture] : white);
   }
 
@@ -275,6 +285,12 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   for (GLuint p : {d.prog_geometry, d.prog_snapshot})
     glProgramUniform3fv(p, glGetUniformLocation(p, "u_light"), 1, glm::value_ptr(d.light));
   d.loc_geometry_viewproj = glGetUniformLocation(d.prog_geometry, "u_viewproj");
+  d.shade_geometry = {glGetUniformLocation(d.prog_geometry, "u_color"), glGetUniformLocation(d.prog_geometry, "u_cutoff")};
+  d.shade_snapshot = {glGetUniformLocation(d.prog_snapshot, "u_color"), glGetUniformLocation(d.prog_snapshot, "u_cutoff")};
+  d.loc_bb_viewproj = glGetUniformLocation(d.prog_billboard, "u_viewproj");
+  d.loc_bb_eye = glGetUniformLocation(d.prog_billboard, "u_eye");
+  d.loc_bb_up = glGetUniformLocation(d.prog_billboard, "u_up");
+  d.loc_bb_blend = glGetUniformLocation(d.prog_billboard, "u_blend");
 
   // Baked clips as a texture buffer.
   const auto rows = model.baked_palette();
@@ -311,7 +327,6 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   glCreateBuffers(1, &d.instances.id);
   glCreateBuffers(1, &d.snapshots.id);
   glCreateBuffers(1, &d.billboards.id);
-  for (StreamBuffer* b : {&d.instances, &d.snapshots, &d.billboards}) b->upload(nullptr, 0);
   d.instances.capacity = d.snapshots.capacity = d.billboards.capacity = 4096;
   for (StreamBuffer* b : {&d.instances, &d.snapshots, &d.billboards})
     glNamedBufferData(b->id, static_cast<GLsizeiptr>(b->capacity), nullptr, GL_STREAM_DRAW);
@@ -351,11 +366,11 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     instance_attribs(l.vao_geometry, d.instances.id, sizeof(InstanceGpu), 5, 2);
     glCreateVertexArrays(1, &l.vao_snapshot);
     vertex_format(l.vao_snapshot, l.vbo, l.ibo);
-    instance_attribs(l.vao_snapshot, d.snapshots.id, sizeof(SnapshotGpu), 5, 7);
+    instance_attribs(l.vao_snapshot, d.snapshots.id, sizeof(SnapshotGpu), 5, 8);
     d.lods.push_back(l);
   }
   glCreateVertexArrays(1, &d.vao_billboard);
-  instance_attribs(d.vao_billboard, d.billboards.id, sizeof(BillboardGpu), 0, 3);
+  instance_attribs(d.vao_billboard, d.billboards.id, sizeof(BillboardGpu), 0, 4);
 
   // The atlas: one RGBA8 layer per page, one depth buffer shared by all pages.
   GLint max_layers = 0, max_size = 0;
@@ -474,11 +489,10 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
   if (options.draw_impostors && !plan.billboards.empty()) {
     d.billboards.upload(plan.billboards.data(), plan.billboards.size() * sizeof(BillboardGpu));
     glUseProgram(d.prog_billboard);
-    glProgramUniformMatrix4fv(d.prog_billboard, glGetUniformLocation(d.prog_billboard, "u_viewproj"), 1, GL_FALSE,
-                              glm::value_ptr(viewproj));
-    glProgramUniform3fv(d.prog_billboard, glGetUniformLocation(d.prog_billboard, "u_eye"), 1, glm::value_ptr(plan.camera.eye));
-    glProgramUniform3fv(d.prog_billboard, glGetUniformLocation(d.prog_billboard, "u_up"), 1, glm::value_ptr(plan.camera.up));
-    glProgramUniform1i(d.prog_billboard, glGetUniformLocation(d.prog_billboard, "u_blend"), options.blend_impostors ? 1 : 0);
+    glProgramUniformMatrix4fv(d.prog_billboard, d.loc_bb_viewproj, 1, GL_FALSE, glm::value_ptr(viewproj));
+    glProgramUniform3fv(d.prog_billboard, d.loc_bb_eye, 1, glm::value_ptr(plan.camera.eye));
+    glProgramUniform3fv(d.prog_billboard, d.loc_bb_up, 1, glm::value_ptr(plan.camera.up));
+    glProgramUniform1i(d.prog_billboard, d.loc_bb_blend, options.blend_impostors ? 1 : 0);
     glBindTextureUnit(2, d.atlas);
     if (options.blend_impostors) {
       glEnable(GL_BLEND);

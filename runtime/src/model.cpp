@@ -90,13 +90,30 @@ void Model::bake(float rate) {
     return p;
   };
   glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
-  for (const BakedClip& bc : baked_)
-    for (int f = 0; f < bc.frame_count; f += sample_stride(bc.frame_count, 120))
+  for (BakedClip& bc : baked_) {
+    // Per-frame bounds (for tight impostor quads): measured at up to 120 frames per clip, each
+    // frame takes the union of the measured frames around it.
+    const int stride = sample_stride(bc.frame_count, 120);
+    std::vector<std::array<glm::vec3, 2>> measured;
+    for (int f = 0; f < bc.frame_count; f += stride) {
+      glm::vec3 flo(std::numeric_limits<float>::max()), fhi(-std::numeric_limits<float>::max());
       for (const Vertex& v : lod.vertices) {
         glm::vec3 p = skin(v, bc.first_row + f);
-        lo = glm::min(lo, p);
-        hi = glm::max(hi, p);
+        flo = glm::min(flo, p);
+        fhi = glm::max(fhi, p);
       }
+      if (lod.vertices.empty()) flo = fhi = glm::vec3(0.0f);
+      measured.push_back({flo, fhi});
+      lo = glm::min(lo, flo);
+      hi = glm::max(hi, fhi);
+    }
+    bc.bounds.resize(bc.frame_count);
+    for (int f = 0; f < bc.frame_count; ++f) {
+      const std::size_t a = static_cast<std::size_t>(f / stride);
+      const std::size_t b = std::min(a + (f % stride ? 1 : 0), measured.size() - 1);
+      bc.bounds[f] = {glm::min(measured[a][0], measured[b][0]), glm::max(measured[a][1], measured[b][1])};
+    }
+  }
   if (lod.vertices.empty()) lo = hi = glm::vec3(0.0f);
   bounds_min = lo;
   bounds_max = hi;
@@ -110,6 +127,9 @@ void Model::bake(float rate) {
       }
   // Frames between the sampled ones can reach a little further.
   radius = std::max(1e-4f, std::sqrt(r2) * 1.02f);
+  const glm::vec3 margin(0.02f * radius);
+  for (BakedClip& bc : baked_)
+    for (auto& b : bc.bounds) b = {b[0] - margin, b[1] + margin};
   bake_posture();
 }
 

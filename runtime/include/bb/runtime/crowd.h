@@ -58,6 +58,9 @@ struct ImpostorConfig {
   // pixels stays geometry (1.0: where a texel of the largest window would cover a pixel).
   float geometry_switch = 1.0f;
   float snapshot_distance = 0.0f; // D of section 4.2 (orthographic); <= 0: 2 * radius
+  // Clear and draw only the part of each window the pose covers (its box projected on the
+  // snapshot plane) instead of the whole square: less fill for the snapshot and the quad.
+  bool tight_quads = true;
   // Perspective snapshots from the eye (exact when taken) or the paper's orthographic ones.
   bool perspective_snapshots = true;
   // Perspective snapshots only: widen the frustum so one texel covers one screen pixel at Ta
@@ -74,6 +77,7 @@ struct BillboardGpu {
   glm::vec4 ta_half;       // world Ta xyz, half size (metres)
   glm::vec4 uv_rect;       // u0, v0, u1, v1 of the window in its page
   glm::vec4 layer;         // page (x); y, z, w unused
+  glm::vec4 rect;          // used part of the window, in [-1, 1]^2 of the window: x0, y0, x1, y1
 };
 struct SnapshotGpu {
   InstanceGpu instance;
@@ -82,6 +86,7 @@ struct SnapshotGpu {
   glm::vec4 vo;            // Vo xyz, 1 for a perspective snapshot (0: orthographic)
   glm::vec4 ta;            // Ta xyz, radius
   glm::vec4 window;        // window rect in page NDC: centre x, centre y, half extent, unused
+  glm::vec4 rect;          // used part of the window, in [-1, 1]^2 of the window: x0, y0, x1, y1
 };
 
 struct FrameStats {
@@ -135,6 +140,7 @@ class FramePlanner {
     std::array<float, 4> posture{};
     glm::mat3 view{1.0f};
     float half_size = 0.0f;  // of the billboard, metres, from the last snapshot
+    glm::vec4 rect{-1, -1, 1, 1};  // part of the window the last snapshot used
     AtlasWindow window;
     bool valid = false;
   };

@@ -112,6 +112,8 @@ struct BakedClip {
   std::uint32_t first_row = 0;  // first row of this clip in Model::baked_palette()
   // kPosturePairs squared distances per frame (model space, m^2).
   std::vector<std::array<float, kPosturePairs>> posture;
+  // Bounding box of each frame's pose (model space, metres, with a 2 % of radius margin).
+  std::vector<std::array<glm::vec3, 2>> bounds;
 };
 
 class Model {
