@@ -1,0 +1,202 @@
+#include "bb/decimate/extremities.h"
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+#include "triangle_grid.h"
+
+namespace bb::decimate {
+
+namespace {
+
+// The part of triangle t when all its vertices share one non-body part, else 0.
+uint8_t triangle_part(const mesher::SkinnedMesh& m, size_t t) {
+  uint8_t p = m.part[m.indices[t]];
+  if (p != 0 && m.part[m.indices[t + 1]] == p && m.part[m.indices[t + 2]] == p) return p;
+  return 0;
+}
+
+}  // namespace
+
+Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh, size_t budget, Report* report) {
+  const size_t nv = mesh.positions.size();
+  if (mesh.part.size() != nv || mesh.seam.size() != nv)
+    return Error{"", "", "the mesh has no part/seam tags: cannot tell extremities from the body"};
+  size_t extremity = 0;
+  for (size_t t = 0; t < mesh.indices.size(); t += 3) extremity += triangle_part(mesh, t) != 0;
+  size_t total = mesh.indices.size() / 3;
+  if (extremity <= budget) {
+    if (report) *report = Report{total, total, nv, 0, 0, 0, 0};
+    return mesh;
+  }
+  Options opt;
+  opt.target_triangles = total - (extremity - budget);
+  opt.locked.resize(nv);
+  for (size_t i = 0; i < nv; ++i) opt.locked[i] = mesh.part[i] == 0 || mesh.seam[i] != 0;
+  auto r = decimate(mesh, opt, report);
+  if (!r) return r.error();
+  // decimate() keeps survivors' attributes but not the tags: carry them over by position.
+  mesher::SkinnedMesh out = std::move(*r);
+  out.part.resize(out.positions.size());
+  out.seam.resize(out.positions.size());
+  std::vector<uint32_t> order(nv);
+  for (uint32_t i = 0; i < nv; ++i) order[i] = i;
+  auto less = [&](const glm::vec3& a, const glm::vec3& b) {
+    return a.x != b.x ? a.x < b.x : a.y != b.y ? a.y < b.y : a.z < b.z;
+  };
+  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return less(mesh.positions[a], mesh.positions[b]); });
+  for (size_t i = 0; i < out.positions.size(); ++i) {
+    auto it = std::lower_bound(order.begin(), order.end(), out.positions[i],
+                               [&](uint32_t a, const glm::vec3& p) { return less(mesh.positions[a], p); });
+    if (it != order.end() && mesh.positions[*it] == out.positions[i]) {
+      out.part[i] = mesh.part[*it];
+      out.seam[i] = mesh.seam[*it];
+    }
+  }
+  return out;
+}
+
+Result<Proxies> bake_proxies(const mesher::SkinnedMesh& coarse, const mesher::SkinnedMesh& detailed,
+                             const ProxyOptions& o) {
+  const size_t nv = coarse.positions.size();
+  if (coarse.part.size() != nv || detailed.part.size() != detailed.positions.size())
+    return Error{"", "", "meshes without part tags: cannot find the extremities"};
+  if (o.texture_size < 16) return Error{"", "", "texture size must be at least 16 pixels"};
+  // Detailed extremity triangles, per part, in nearest-point grids.
+  std::vector<std::vector<uint32_t>> det_idx(8);
+  for (size_t t = 0; t < detailed.indices.size(); t += 3) {
+    uint8_t p = triangle_part(detailed, t);
+    if (p && p < 8) det_idx[p].insert(det_idx[p].end(), {detailed.indices[t], detailed.indices[t + 1], detailed.indices[t + 2]});
+  }
+  std::vector<std::unique_ptr<detail::TriangleGrid>> grids(8);
+  for (int p = 1; p < 8; ++p)
+    if (!det_idx[p].empty()) grids[p] = std::make_unique<detail::TriangleGrid>(detailed.positions, det_idx[p]);
+
+  std::vector<size_t> tris;
+  for (size_t t = 0; t < coarse.indices.size(); t += 3) {
+    uint8_t p = triangle_part(coarse, t);
+    if (p && p < 8 && grids[p]) tris.push_back(t);
+  }
+  Proxies out;
+  out.width = out.height = o.texture_size;
+  out.rgba.assign(static_cast<size_t>(o.texture_size) * o.texture_size * 4, 0);
+  out.mesh = coarse;
+  out.proxy_triangles = tris.size();
+  // Layout: two triangles per square cell (lower-left and upper-right halves), one more cell of
+  // plain skin for the rest of the body.
+  size_t cells = (tris.size() + 1) / 2 + 1;
+  int per_row = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(cells))));
+  int cell = o.texture_size / per_row;
+  if (cell < 6) return Error{"", "", "too many proxy triangles for a " + std::to_string(o.texture_size) + " px texture"};
+  const int gutter = 2;
+  auto to_byte = [](float v) { return static_cast<uint8_t>(std::clamp(v, 0.0f, 1.0f) * 255.0f + 0.5f); };
+  auto put = [&](int x, int y, glm::vec3 c) {
+    if (x < 0 || y < 0 || x >= o.texture_size || y >= o.texture_size) return;
+    uint8_t* px = &out.rgba[(static_cast<size_t>(y) * o.texture_size + x) * 4];
+    px[0] = to_byte(c.r);
+    px[1] = to_byte(c.g);
+    px[2] = to_byte(c.b);
+    px[3] = 255;
+  };
+  // The plain cell (last one) and the whole background in skin colour.
+  for (int y = 0; y < o.texture_size; ++y)
+    for (int x = 0; x < o.texture_size; ++x) put(x, y, o.skin);
+  int plain = static_cast<int>(cells) - 1;
+  glm::vec2 plain_uv((plain % per_row + 0.5f) * cell / o.texture_size, (plain / per_row + 0.5f) * cell / o.texture_size);
+  out.mesh.uvs.assign(nv, plain_uv);
+
+  glm::vec3 light = glm::normalize(o.light);
+  auto shade = [&](const glm::vec3& n) { return 0.35f + 0.65f * std::max(0.0f, glm::dot(n, light)); };
+  for (size_t k = 0; k < tris.size(); ++k) {
+    size_t t = tris[k];
+    int c = static_cast<int>(k / 2), half = static_cast<int>(k % 2);
+    int cx = (c % per_row) * cell, cy = (c / per_row) * cell;
+    // Texel-space corners of this half cell (inset by the gutter).
+    float lo = gutter, hi = cell - gutter;
+    glm::vec2 corners[3];
+    if (half == 0) {
+      corners[0] = {lo, lo};
+      corners[1] = {hi - 1, lo};
+      corners[2] = {lo, hi - 1};
+    } else {
+      corners[0] = {hi, hi};
+      corners[1] = {lo + 1, hi};
+      corners[2] = {hi, lo + 1};
+    }
+    uint32_t vi[3] = {coarse.indices[t], coarse.indices[t + 1], coarse.indices[t + 2]};
+    uint8_t part = coarse.part[vi[0]];
+    // New vertices with this triangle's uvs.
+    for (int j = 0; j < 3; ++j) {
+      uint32_t nvi = static_cast<uint32_t>(out.mesh.positions.size());
+      out.mesh.positions.push_back(coarse.positions[vi[j]]);
+      if (!coarse.normals.empty()) out.mesh.normals.push_back(coarse.normals[vi[j]]);
+      if (!coarse.joints.empty()) out.mesh.joints.push_back(coarse.joints[vi[j]]);
+      if (!coarse.weights.empty()) out.mesh.weights.push_back(coarse.weights[vi[j]]);
+      out.mesh.part.push_back(coarse.part[vi[j]]);
+      if (!coarse.seam.empty()) out.mesh.seam.push_back(coarse.seam[vi[j]]);
+      out.mesh.uvs.push_back((glm::vec2(cx, cy) + corners[j] + 0.5f) / static_cast<float>(o.texture_size));
+      out.mesh.indices[t + j] = nvi;
+    }
+    // Fill the texels of the half cell (and its gutter) from the detailed extremity.
+    glm::vec3 p0 = coarse.positions[vi[0]], p1 = coarse.positions[vi[1]], p2 = coarse.positions[vi[2]];
+    glm::vec3 face_n = glm::normalize(glm::cross(p1 - p0, p2 - p0));
+    glm::vec2 a = corners[0], b = corners[1], d = corners[2];
+    float det = (b.x - a.x) * (d.y - a.y) - (d.x - a.x) * (b.y - a.y);
+    if (std::abs(det) < 1e-6f) continue;
+    // The detail is looked up once per 2x2 texel block (nearest-point queries dominate the cost).
+    for (int y = 0; y < cell; y += 2)
+      for (int x = 0; x < cell; x += 2) {
+        glm::vec2 q(x + 0.5f, y + 0.5f);
+        float u = ((q.x - a.x) * (d.y - a.y) - (d.x - a.x) * (q.y - a.y)) / det;
+        float v = ((b.x - a.x) * (q.y - a.y) - (q.x - a.x) * (b.y - a.y)) / det;
+        // Texels of this half (with a small margin that feeds the gutter).
+        bool mine = half == 0 ? (x + y <= cell) : (x + y + 2 >= cell - 1);
+        if (!mine) continue;
+        u = std::clamp(u, 0.0f, 1.0f);
+        v = std::clamp(v, 0.0f, 1.0f - u);
+        glm::vec3 p = p0 + u * (p1 - p0) + v * (p2 - p0);
+        glm::vec3 n = face_n;
+        if (!coarse.normals.empty()) {
+          glm::vec3 nn = (1 - u - v) * coarse.normals[vi[0]] + u * coarse.normals[vi[1]] + v * coarse.normals[vi[2]];
+          if (glm::length(nn) > 1e-6f) n = glm::normalize(nn);
+        }
+        glm::vec3 cp;
+        uint32_t dt = 0;
+        grids[part]->closest(p, &cp, &dt);
+        const auto& di = det_idx[part];
+        glm::vec3 q0 = detailed.positions[di[3 * dt]], q1 = detailed.positions[di[3 * dt + 1]],
+                  q2 = detailed.positions[di[3 * dt + 2]];
+        glm::vec3 dn = glm::normalize(glm::cross(q1 - q0, q2 - q0));
+        float ratio = std::clamp(shade(dn) / std::max(0.2f, shade(n)), 0.35f, 1.25f);
+        // Detail below the proxy surface (between fingers, under the chin) is darker.
+        float depth = glm::dot(p - cp, n);
+        float occlusion = 1.0f - 0.6f * std::clamp(depth / o.gap_depth_m, 0.0f, 1.0f);
+        glm::vec3 colour = o.skin * (0.85f * ratio * occlusion);
+        for (int j = 0; j < 2; ++j)
+          for (int i = 0; i < 2; ++i)
+            if (x + i < cell && y + j < cell) put(cx + x + i, cy + y + j, colour);
+      }
+  }
+  // Drop vertices no triangle uses any more (extremity vertices replaced by their copies).
+  std::vector<int> used(out.mesh.positions.size(), -1);
+  mesher::SkinnedMesh compact;
+  compact.indices.reserve(out.mesh.indices.size());
+  for (uint32_t& i : out.mesh.indices) {
+    if (used[i] < 0) {
+      used[i] = static_cast<int>(compact.positions.size());
+      compact.positions.push_back(out.mesh.positions[i]);
+      if (!out.mesh.normals.empty()) compact.normals.push_back(out.mesh.normals[i]);
+      compact.uvs.push_back(out.mesh.uvs[i]);
+      if (!out.mesh.joints.empty()) compact.joints.push_back(out.mesh.joints[i]);
+      if (!out.mesh.weights.empty()) compact.weights.push_back(out.mesh.weights[i]);
+      compact.part.push_back(out.mesh.part[i]);
+      if (!out.mesh.seam.empty()) compact.seam.push_back(out.mesh.seam[i]);
+    }
+    compact.indices.push_back(static_cast<uint32_t>(used[i]));
+  }
+  out.mesh = std::move(compact);
+  return out;
+}
+
+}  // namespace bb::decimate
