@@ -179,6 +179,7 @@ int run_mesh(const std::string& body_path, const std::string& dir, bool as_json,
                               {"mean_m", r.mean_m}, {"hausdorff_rel", r.hausdorff_rel}, {"mean_rel", r.mean_rel},
                               {"closed", r.closed}, {"manifold", r.manifold}, {"oriented", r.oriented},
                               {"self_intersections", r.self_intersection_count}, {"ms", 1e3 * r.seconds},
+                              {"extremity_hausdorff_m", r.extremity_hausdorff_m},
                               {"screen_coverage", l.screen_coverage}});
   }
   std::string png = (fs::path(dir) / "lods.png").string();
@@ -191,11 +192,12 @@ int run_mesh(const std::string& body_path, const std::string& dir, bool as_json,
     std::cout << report.dump() << '\n';
   } else {
     std::printf("%s, %.3f m: %zu levels in %s\n", body.name.c_str(), body.height(), lods->size(), dir.c_str());
-    std::printf("lod  triangles  vertices  hausdorff (m, %%height)  mean (m, %%height)  closed manifold self-x  ms\n");
+    std::printf("lod  triangles (extremities)  vertices  hausdorff (m, %%height)  mean (m, %%height)  extremities (m, %%height)  closed manifold self-x  ms\n");
     for (const auto& l : *lods) {
       const auto& r = l.report;
-      std::printf("%3d  %9zu  %8zu  %.4f %6.3f%%        %.5f %6.3f%%    %d      %d      %4zu  %6.1f\n", r.level,
-                  r.triangles, r.vertices, r.hausdorff_m, 100 * r.hausdorff_rel, r.mean_m, 100 * r.mean_rel,
+      std::printf("%3d  %9zu (%6zu)  %8zu  %.4f %6.3f%%        %.5f %6.3f%%    %.4f %6.3f%%            %d      %d      %4zu  %6.1f\n",
+                  r.level, r.triangles, r.extremity_triangles, r.vertices, r.hausdorff_m, 100 * r.hausdorff_rel,
+                  r.mean_m, 100 * r.mean_rel, r.extremity_hausdorff_m, 100 * r.extremity_hausdorff_m / body.height(),
                   r.closed, r.manifold, r.self_intersection_count, 1e3 * r.seconds);
     }
     std::printf("stages (ms): field %.1f, contours %.1f, extremities %.1f, joining %.1f, skinning %.1f, checks %.1f, errors %.1f\n",

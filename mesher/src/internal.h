@@ -37,6 +37,12 @@ class SubField {
   modeler::Aabb bounds_;
 };
 
+// One contour (paper 3.1): `points` rays cast star-shaped from `center` in the plane normal to
+// `tangent` (first ray along the projection of `reference`), each sample the outermost crossing
+// of `field`. Returns the samples in order around the tangent (counter-clockwise).
+std::vector<glm::vec3> sample_contour(const SubField& field, const glm::vec3& center, const glm::vec3& tangent,
+                                      const glm::vec3& reference, int points);
+
 // An indexed triangle mesh with per-vertex tags, the unit the mesher assembles.
 struct PieceMesh {
   std::vector<glm::vec3> positions;

@@ -244,11 +244,22 @@ std::vector<Ring> cast_cap(const SubField& field, const Frame& f, int points, in
 // Contour-sampled extremity: latitude rings cast from the cup centre, from the directions of
 // the rim (the seam ring) to the pole, only beyond the seam plane.
 void cast_cup(const SubField& field, const PieceSpec& spec, const Frame& seam, const Ring& rim, int lat,
-              PieceMesh& mesh, std::vector<uint32_t>& idx) {
+              int points, PieceMesh& mesh, std::vector<uint32_t>& idx) {
   const glm::vec3 c = spec.cup_center, pole = glm::normalize(spec.cup_pole);
   const uint8_t part = uint8_t(spec.ext_part);
-  std::vector<glm::vec3> d0;
-  for (uint32_t id : rim.ids) d0.push_back(glm::normalize(mesh.positions[id] - c));
+  // Meridians: `points` of them (at least the rim's), starting from the rim polyline at
+  // angles 2 pi k / points.
+  const size_t n_rim = rim.ids.size(), n = std::max<size_t>(n_rim, size_t(points));
+  std::vector<glm::vec3> start(n), d0(n);
+  std::vector<float> angles(n);
+  for (size_t k = 0; k < n; ++k) {
+    float a = float(k) / float(n) * float(n_rim);
+    size_t k0 = size_t(a) % n_rim, k1 = (k0 + 1) % n_rim;
+    float f = a - std::floor(a);
+    start[k] = (1 - f) * mesh.positions[rim.ids[k0]] + f * mesh.positions[rim.ids[k1]];
+    d0[k] = glm::normalize(start[k] - c);
+    angles[k] = glm::two_pi<float>() * float(k) / float(n);
+  }
   auto slerp = [](glm::vec3 a, glm::vec3 b, float s) {
     float cosang = glm::clamp(glm::dot(a, b), -1.0f, 1.0f);
     float ang = std::acos(cosang);
@@ -272,7 +283,7 @@ void cast_cup(const SubField& field, const PieceSpec& spec, const Frame& seam, c
   const int fine = 48;
   std::vector<double> arc(fine + 1, 0.0);
   for (size_t k = 0; k < d0.size(); ++k) {
-    glm::vec3 prev_p = mesh.positions[rim.ids[k]];
+    glm::vec3 prev_p = start[k];
     for (int i = 1; i <= fine; ++i) {
       glm::vec3 p = cast(k, float(i) / fine);
       arc[i] += glm::distance(p, prev_p);
@@ -293,7 +304,7 @@ void cast_cup(const SubField& field, const PieceSpec& spec, const Frame& seam, c
     Ring r;
     for (size_t k = 0; k < d0.size(); ++k) {
       r.ids.push_back(mesh.add(cast(k, s), part, 0, spec.ext_region));
-      r.angles.push_back(rim.angles[k]);
+      r.angles.push_back(angles[k]);
     }
     strip(prev, r, idx);
     prev = std::move(r);
@@ -304,7 +315,18 @@ void cast_cup(const SubField& field, const PieceSpec& spec, const Frame& seam, c
 }
 
 // One closed piece at one density.
-PieceMesh build_piece(const PieceSpec& spec, const PartDensity& density, int cup_rings, bool vdb, float ring_gap) {
+// An OpenVDB extremity kept out of the union: its vertices, the seam ring it is zipped to (by
+// position, the union keeps those vertices as they are), its triangles (index < ring.size():
+// a ring vertex; else ext vertex index - ring.size()) and the pole of the stand-in fan.
+struct Attachment {
+  std::vector<glm::vec3> ring;
+  PieceMesh ext;
+  std::vector<uint32_t> tris;
+  glm::vec3 pole{0};
+};
+
+PieceMesh build_piece(const PieceSpec& spec, const PartDensity& density, int cup_rings, int cup_points, bool vdb,
+                      float ring_gap, Attachment* att = nullptr) {
   PieceMesh mesh;
   const SubField& field = *spec.field;
   const int rings = std::max(2, density.contours * spec.links + 1);
@@ -348,7 +370,7 @@ PieceMesh build_piece(const PieceSpec& spec, const PartDensity& density, int cup
     prev = std::move(r);
   }
   if (!vdb) {
-    cast_cup(field, spec, frames.back(), prev, cup_rings, mesh, idx);
+    cast_cup(field, spec, frames.back(), prev, cup_rings, cup_points, mesh, idx);
     return mesh;
   }
   // Zip the last ring to the OpenVDB extremity's border loop.
@@ -360,6 +382,7 @@ PieceMesh build_piece(const PieceSpec& spec, const PartDensity& density, int cup
     prev.angles[k] = std::atan2(glm::dot(d, sf.v), glm::dot(d, sf.u));
   }
   uint32_t base = uint32_t(mesh.positions.size());
+  const size_t tri_start = idx.size();
   for (size_t i = 0; i < spec.vdb.positions.size(); ++i)
     mesh.add(spec.vdb.positions[i], uint8_t(spec.ext_part), 0, spec.ext_region);
   for (uint32_t i : spec.vdb.indices) idx.push_back(base + i);
@@ -393,6 +416,34 @@ PieceMesh build_piece(const PieceSpec& spec, const PartDensity& density, int cup
   normalize_ring(prev);
   normalize_ring(loop);
   strip(prev, loop, idx);
+  if (!att) return mesh;
+  // Hand the extremity and its zipper to `att`; close the piece with a fan to the seam centre
+  // instead, which is all the union needs to see there.
+  att->ring.clear();
+  std::unordered_map<uint32_t, uint32_t> ring_slot;
+  for (uint32_t id : prev.ids) {
+    ring_slot[id] = uint32_t(att->ring.size());
+    att->ring.push_back(mesh.positions[id]);
+  }
+  const uint32_t R = uint32_t(att->ring.size());
+  att->ext = PieceMesh{};
+  for (uint32_t v = base; v < mesh.positions.size(); ++v)
+    att->ext.add(mesh.positions[v], mesh.part[v], mesh.seam[v], mesh.region[v]);
+  att->tris.clear();
+  for (size_t i = tri_start; i < idx.size(); ++i) {
+    uint32_t v = idx[i];
+    att->tris.push_back(v >= base ? R + (v - base) : ring_slot.at(v));
+  }
+  idx.resize(tri_start);
+  mesh.positions.resize(base);
+  mesh.part.resize(base);
+  mesh.seam.resize(base);
+  mesh.region.resize(base);
+  att->pole = sf.c;
+  uint32_t pole_id = mesh.add(sf.c, uint8_t(MeshPart::kBody), 0, spec.region);
+  Ring ring_in_order;
+  ring_in_order.ids = prev.ids;
+  fan(pole_id, ring_in_order, true, idx);
   return mesh;
 }
 
@@ -599,7 +650,7 @@ Result<BodyModel> analyse(const modeler::Body& body) {
 
 // The OpenVDB extremity of a piece: box around the primitives beyond the seam plane and the
 // seam ring's neighbourhood.
-Status build_vdb_extremity(PieceSpec& p, float voxel_scale) {
+Status build_vdb_extremity(const modeler::ImplicitSurface& surface, PieceSpec& p, float voxel_scale) {
   const Frame& sf = p.seam_frame;
   modeler::Aabb box;
   // Surface beyond the plane lies within the supports of the piece's primitives that reach
@@ -625,7 +676,16 @@ Status build_vdb_extremity(PieceSpec& p, float voxel_scale) {
   // Rays miss thin features: pad by 2 cm.
   box.min -= glm::vec3(0.02f);
   box.max += glm::vec3(0.02f);
-  auto e = detail::mesh_extremity(*p.field, box, p.ext_voxel * voxel_scale, sf.c, sf.t);
+  // Only the primitives whose support meets the box matter there.
+  std::vector<int> near;
+  for (int i : p.prims) {
+    const modeler::Aabb& sb = surface.primitives()[i].support;
+    if (sb.min.x <= box.max.x && sb.max.x >= box.min.x && sb.min.y <= box.max.y && sb.max.y >= box.min.y &&
+        sb.min.z <= box.max.z && sb.max.z >= box.min.z)
+      near.push_back(i);
+  }
+  SubField local(surface, near);
+  auto e = detail::mesh_extremity(local, box, p.ext_voxel * voxel_scale, sf.c, sf.t);
   if (!e) return e.error();
   p.vdb = std::move(*e);
   return Ok{};
@@ -644,6 +704,67 @@ Status build_vdb_extremity(PieceSpec& p, float voxel_scale) {
     if (gl > 1e-6f) d = std::max(d, double(std::abs(v0) / gl));
   }
   return d;
+}
+
+// Puts the OpenVDB extremities back in place of their stand-in fans after the union. False when
+// the union changed a fan (then nothing is modified).
+bool reattach(PlainMesh& m, const std::vector<Attachment>& atts) {
+  auto key = [](const glm::vec3& p) {
+    uint32_t b[3];
+    std::memcpy(b, &p, 12);
+    return (uint64_t(b[0]) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(b[1]) * 0xC2B2AE3D27D4EB4Full) ^ b[2];
+  };
+  std::unordered_multimap<uint64_t, uint32_t> at;
+  for (uint32_t i = 0; i < m.positions.size(); ++i) at.emplace(key(m.positions[i]), i);
+  auto find = [&](const glm::vec3& p) -> int64_t {
+    auto r = at.equal_range(key(p));
+    for (auto it = r.first; it != r.second; ++it)
+      if (m.positions[it->second] == p) return it->second;
+    return -1;
+  };
+  std::vector<char> drop(m.indices.size() / 3, 0);
+  std::vector<std::vector<uint32_t>> ring_ids(atts.size());
+  std::vector<int64_t> poles(atts.size());
+  for (size_t a = 0; a < atts.size(); ++a) {
+    poles[a] = find(atts[a].pole);
+    if (poles[a] < 0) return false;
+    std::unordered_map<uint32_t, int> in_ring;
+    for (const glm::vec3& p : atts[a].ring) {
+      int64_t v = find(p);
+      if (v < 0) return false;
+      in_ring[uint32_t(v)] = 1;
+      ring_ids[a].push_back(uint32_t(v));
+    }
+    size_t fan = 0;
+    for (size_t t = 0; t < drop.size(); ++t) {
+      const uint32_t* v = &m.indices[3 * t];
+      if (v[0] != poles[a] && v[1] != poles[a] && v[2] != poles[a]) continue;
+      for (int k = 0; k < 3; ++k)
+        if (v[k] != poles[a] && !in_ring.count(v[k])) return false;
+      drop[t] = 1;
+      ++fan;
+    }
+    if (fan != atts[a].ring.size()) return false;
+  }
+  std::vector<uint32_t> idx;
+  idx.reserve(m.indices.size());
+  for (size_t t = 0; t < drop.size(); ++t)
+    if (!drop[t]) idx.insert(idx.end(), m.indices.begin() + 3 * t, m.indices.begin() + 3 * t + 3);
+  for (size_t a = 0; a < atts.size(); ++a) {
+    const uint32_t R = uint32_t(atts[a].ring.size()), base = uint32_t(m.positions.size());
+    m.positions.insert(m.positions.end(), atts[a].ext.positions.begin(), atts[a].ext.positions.end());
+    for (uint32_t i : atts[a].tris) idx.push_back(i < R ? ring_ids[a][i] : base + (i - R));
+  }
+  m.indices = std::move(idx);
+  // The poles are no longer used: compact.
+  std::vector<int64_t> map(m.positions.size(), -1);
+  std::vector<glm::vec3> pos;
+  for (uint32_t& i : m.indices) {
+    if (map[i] < 0) { map[i] = int64_t(pos.size()); pos.push_back(m.positions[i]); }
+    i = uint32_t(map[i]);
+  }
+  m.positions = std::move(pos);
+  return true;
 }
 
 // The union can leave a tiny closed bubble where an extended ray enclosed a pocket of the
@@ -676,6 +797,18 @@ void drop_small_components(PlainMesh& m) {
 }
 
 }  // namespace
+
+std::vector<glm::vec3> detail::sample_contour(const SubField& field, const glm::vec3& center, const glm::vec3& tangent,
+                                              const glm::vec3& reference, int points) {
+  Frame f;
+  f.c = center;
+  f.t = glm::normalize(tangent);
+  f.u = glm::normalize(reference - glm::dot(reference, f.t) * f.t);
+  f.v = glm::cross(f.t, f.u);
+  PieceMesh mesh;
+  cast_ring(field, f, points, mesh, 0, 0, 0);
+  return mesh.positions;
+}
 
 std::vector<LodDensity> default_lod_chain() {
   std::vector<LodDensity> c(4);
@@ -730,9 +863,9 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
     // Five extremities on two cores.
     std::vector<Status> st(m.pieces.size(), Ok{});
     std::thread worker([&] {
-      for (size_t i = 0; i < m.pieces.size(); i += 2) st[i] = build_vdb_extremity(m.pieces[i], 1.0f);
+      for (size_t i = 0; i < m.pieces.size(); i += 2) st[i] = build_vdb_extremity(*m.surface, m.pieces[i], 1.0f);
     });
-    for (size_t i = 1; i < m.pieces.size(); i += 2) st[i] = build_vdb_extremity(m.pieces[i], 1.0f);
+    for (size_t i = 1; i < m.pieces.size(); i += 2) st[i] = build_vdb_extremity(*m.surface, m.pieces[i], 1.0f);
     worker.join();
     for (size_t i = 0; i < st.size(); ++i)
       if (!st[i]) return Error{"", body.name + ": extremity " + std::to_string(i), st[i].error().reason};
@@ -760,13 +893,16 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
     auto lod_start = Clock::now();
     t0 = Clock::now();
     std::vector<PieceMesh> pieces;
+    std::vector<Attachment> attachments(d.vdb_extremities ? m.pieces.size() : 0);
     for (size_t i = 0; i < m.pieces.size(); ++i) {
       const PieceSpec& spec = m.pieces[i];
       const PartDensity& pd = i == 0 ? d.torso : (i < 3 ? d.arm : d.leg);
       int cup = i == 0 ? d.head_rings : (i < 3 ? d.hand_rings : d.foot_rings);
+      int cup_points = i == 0 ? d.head_points : (i < 3 ? d.hand_points : d.foot_points);
       float spacing = axis_length(spec.axis) / float(pd.contours * spec.links);
       float gap = std::max(0.003f * m.height / 1.75f, 0.35f * spacing);
-      pieces.push_back(build_piece(spec, pd, cup, d.vdb_extremities, gap));
+      pieces.push_back(build_piece(spec, pd, cup, cup_points, d.vdb_extremities, gap,
+                                   d.vdb_extremities ? &attachments[i] : nullptr));
     }
     g_times.contours += since(t0);
 
@@ -785,6 +921,24 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
       }
     auto joined = detail::mesh_union(plain);
     if (!joined) return Error{"", body.name + ": lods[" + std::to_string(level) + "]", joined.error().message()};
+    if (!attachments.empty() && !reattach(*joined, attachments)) {
+      // The union touched a stand-in fan: unite the pieces with their extremities (slower).
+      std::vector<PlainMesh> full;
+      for (size_t i = 0; i < m.pieces.size(); ++i) {
+        const PieceSpec& spec = m.pieces[i];
+        const PartDensity& pd = i == 0 ? d.torso : (i < 3 ? d.arm : d.leg);
+        int cup = i == 0 ? d.head_rings : (i < 3 ? d.hand_rings : d.foot_rings);
+        float spacing = axis_length(spec.axis) / float(pd.contours * spec.links);
+        float gap = std::max(0.003f * m.height / 1.75f, 0.35f * spacing);
+        PieceMesh p = build_piece(spec, pd, cup, 0, true, gap);
+        full.push_back({p.positions, p.indices});
+        pieces[i] = std::move(p);
+      }
+      attachments.clear();
+      joined = detail::mesh_union(full);
+      if (!joined) return Error{"", body.name + ": lods[" + std::to_string(level) + "]", joined.error().message()};
+    }
+    for (const Attachment& a : attachments) pieces.push_back(a.ext);  // for the attribute lookup
     drop_small_components(*joined);
     g_times.joining += since(t0);
 
@@ -904,11 +1058,15 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
       // Mesh -> skin: vertices and area samples, exact distance to the reference skin mesh;
       // skin -> mesh: reference points' exact distance to this mesh.
       std::vector<glm::vec3> pts(mesh.positions);
+      std::vector<char> pts_ext(mesh.positions.size());
+      for (size_t i = 0; i < mesh.positions.size(); ++i) pts_ext[i] = mesh.part[i] != 0 && !mesh.seam[i];
       std::mt19937 rng(11);
       std::uniform_real_distribution<float> u(0, 1);
       size_t nt = mesh.triangle_count();
       for (int s = 0; s < options.error_samples; ++s) {
         size_t t = std::min(nt - 1, size_t(u(rng) * nt));
+        uint8_t p0 = mesh.part[mesh.indices[3 * t]];
+        pts_ext.push_back(p0 != 0 && mesh.part[mesh.indices[3 * t + 1]] == p0 && mesh.part[mesh.indices[3 * t + 2]] == p0);
         float r1 = std::sqrt(u(rng)), r2 = u(rng);
         const glm::vec3 &a = mesh.positions[mesh.indices[3 * t]], &b = mesh.positions[mesh.indices[3 * t + 1]],
                         &c = mesh.positions[mesh.indices[3 * t + 2]];
@@ -923,6 +1081,21 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
                         std::accumulate(d2.begin(), d2.end(), 0.0) / double(d2.size()));
       r.hausdorff_rel = r.hausdorff_m / m.height;
       r.mean_rel = r.mean_m / m.height;
+      // Extremities: mesh samples on extremity triangles, reference points beyond a seam plane
+      // and near that extremity's centre.
+      double he = 0;
+      for (size_t i = 0; i < pts.size(); ++i)
+        if (pts_ext[i]) he = std::max(he, d1[i]);
+      for (size_t i = 0; i < reference_points.size(); ++i)
+        for (const PieceSpec& ps : m.pieces) {
+          const glm::vec3& q = reference_points[i];
+          if (glm::dot(q - ps.seam_frame.c, ps.seam_frame.t) > 0.01f * m.height / 1.75f &&
+              glm::distance(q, ps.cup_center) < 0.25f * m.height / 1.75f) {
+            he = std::max(he, d2[i]);
+            break;
+          }
+        }
+      r.extremity_hausdorff_m = he;
       if (std::getenv("BB_MESHER_DEBUG")) {
         size_t i1 = std::max_element(d1.begin(), d1.end()) - d1.begin();
         size_t i2 = std::max_element(d2.begin(), d2.end()) - d2.begin();

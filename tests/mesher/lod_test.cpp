@@ -2,6 +2,7 @@
 // no self-intersections, one component, normalized weights with at most 4 influences, seams
 // without cracks, errors within the targets.
 #include <cstdio>
+#include <set>
 
 #include <gtest/gtest.h>
 
@@ -67,6 +68,43 @@ TEST(BuildLods, DefaultBodyChainIsCleanAndAccurate) {
   EXPECT_LT(lods->front().report.mean_rel, 0.001);
   EXPECT_LT(lods->back().report.hausdorff_rel, 0.03);
   EXPECT_LE(lods->back().report.triangles, 800u);
+}
+
+// The OpenVDB extremities are zipped to the contours: each extremity has a seam loop on both
+// sides (contour ring tagged body, border loop tagged with the part), every edge of the level is
+// shared by exactly two triangles (no crack), and zipper triangles join the two.
+TEST(BuildLods, SeamsAreTaggedAndCrackFree) {
+  MesherOptions o;
+  o.lods = {default_lod_chain().front()};
+  o.error_samples = 0;
+  auto lods = build_lods(modeler::default_body(), o);
+  ASSERT_TRUE(lods.ok()) << lods.error().message();
+  const SkinnedMesh& m = lods->front().mesh;
+  MeshCheck c = check_mesh(m.positions, m.indices, false);
+  EXPECT_EQ(c.border_edges, 0u);
+  EXPECT_EQ(c.non_manifold_edges, 0u);
+  for (int part = 1; part <= 5; ++part) {
+    size_t seam_ext = 0, zipper = 0;
+    std::set<uint32_t> ring;
+    for (size_t v = 0; v < m.positions.size(); ++v) seam_ext += m.seam[v] && m.part[v] == part;
+    for (size_t t = 0; t < m.indices.size(); t += 3) {
+      int body = 0, ext = 0;
+      for (int k = 0; k < 3; ++k) {
+        uint32_t v = m.indices[t + k];
+        body += m.part[v] == 0 && m.seam[v];
+        ext += m.part[v] == part && m.seam[v];
+      }
+      if (body > 0 && ext > 0 && body + ext == 3) {
+        ++zipper;
+        for (int k = 0; k < 3; ++k)
+          if (m.part[m.indices[t + k]] == 0) ring.insert(m.indices[t + k]);
+      }
+    }
+    EXPECT_GT(seam_ext, 20u) << "part " << part;
+    EXPECT_GE(ring.size(), 8u) << "part " << part;
+    // A zipper between a ring of N and a loop of M vertices has N + M triangles.
+    EXPECT_EQ(zipper, seam_ext + ring.size()) << "part " << part;
+  }
 }
 
 TEST(BuildLods, RandomVariantsAreClean) {

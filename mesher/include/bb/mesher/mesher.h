@@ -42,6 +42,9 @@ struct LodDensity {
   // "cup" cast from the centre of the hand, foot or head; each ring has as many points as the
   // limb ring it continues (arm, leg, torso points).
   int hand_rings = 8, foot_rings = 10, head_rings = 10;
+  // Meridians of the cups; 0 (or fewer than the limb ring's points) keeps the limb ring's count.
+  // The foot wants more than the ankle: it is long and the toes sit between meridians.
+  int hand_points = 0, foot_points = 0, head_points = 0;
   // true: head, hands and feet are the full-resolution OpenVDB meshes, tagged in
   // SkinnedMesh::part and zipped along SkinnedMesh::seam loops (decimation works on them);
   // false: they are contour-sampled cups (self-contained coarse levels; part/seam still tagged).

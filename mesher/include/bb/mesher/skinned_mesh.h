@@ -53,6 +53,7 @@ struct LodReport {
   bool vdb_extremities = false;              // head, hands, feet are full-resolution OpenVDB meshes
   size_t extremity_triangles = 0;            // triangles whose vertices are all one extremity part
   size_t self_intersection_count = 0;        // pairs of intersecting triangles (0 when clean)
+  double extremity_hausdorff_m = 0;          // the same Hausdorff restricted to head, hands, feet
 };
 
 struct Lod {
