@@ -92,7 +92,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
     bool as_geometry = !impostor_mode || (mode == RenderMode::kAuto && pixels > switch_px);
     if (!as_geometry) {
       CacheState& cs = cache_[i];
-      const int wclass = choose_window(config_.windows, pixels);
+      const int wclass = choose_window(config_.windows, pixels * config_.texels_per_pixel);
       bool refresh = !cs.valid;
       if (!refresh && cs.window.size_class != wclass) {
         refresh = true;

@@ -514,16 +514,26 @@ std::vector<std::uint8_t> Renderer::read_atlas_page(int page) const {
   return px;
 }
 
-Result<std::unique_ptr<OffscreenTarget>> OffscreenTarget::create(int width, int height) {
+Result<std::unique_ptr<OffscreenTarget>> OffscreenTarget::create(int width, int height, int samples) {
   if (width <= 0 || height <= 0 || width > 16384 || height > 16384)
     return Error{"", "target", "size " + std::to_string(width) + "x" + std::to_string(height) + " is out of range"};
   std::unique_ptr<OffscreenTarget> t(new OffscreenTarget());
   t->width_ = width;
   t->height_ = height;
+  GLint max_samples = 1;
+  glGetIntegerv(GL_MAX_SAMPLES, &max_samples);
+  t->samples_ = std::clamp(samples, 1, std::max(1, max_samples));
+  const GLsizei ms = t->samples_ > 1 ? t->samples_ : 0;
   glCreateRenderbuffers(1, &t->color_);
-  glNamedRenderbufferStorage(t->color_, GL_RGBA8, width, height);
+  glNamedRenderbufferStorageMultisample(t->color_, ms, GL_RGBA8, width, height);
   glCreateRenderbuffers(1, &t->depth_);
-  glNamedRenderbufferStorage(t->depth_, GL_DEPTH_COMPONENT24, width, height);
+  glNamedRenderbufferStorageMultisample(t->depth_, ms, GL_DEPTH_COMPONENT24, width, height);
+  if (ms) {
+    glCreateRenderbuffers(1, &t->resolve_color_);
+    glNamedRenderbufferStorage(t->resolve_color_, GL_RGBA8, width, height);
+    glCreateFramebuffers(1, &t->resolve_fbo_);
+    glNamedFramebufferRenderbuffer(t->resolve_fbo_, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, t->resolve_color_);
+  }
   glCreateFramebuffers(1, &t->fbo_);
   glNamedFramebufferRenderbuffer(t->fbo_, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, t->color_);
   glNamedFramebufferRenderbuffer(t->fbo_, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, t->depth_);
@@ -536,6 +546,10 @@ OffscreenTarget::~OffscreenTarget() {
   glDeleteFramebuffers(1, &fbo_);
   glDeleteRenderbuffers(1, &color_);
   glDeleteRenderbuffers(1, &depth_);
+  if (resolve_fbo_) {
+    glDeleteFramebuffers(1, &resolve_fbo_);
+    glDeleteRenderbuffers(1, &resolve_color_);
+  }
 }
 
 void OffscreenTarget::bind(bool clear) {
@@ -551,7 +565,12 @@ void OffscreenTarget::bind(bool clear) {
 
 std::vector<std::uint8_t> OffscreenTarget::read_rgba() const {
   std::vector<std::uint8_t> px(static_cast<std::size_t>(width_) * height_ * 4);
-  glBindFramebuffer(GL_READ_FRAMEBUFFER, fbo_);
+  if (resolve_fbo_) {
+    glBlitNamedFramebuffer(fbo_, resolve_fbo_, 0, 0, width_, height_, 0, 0, width_, height_, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, resolve_fbo_);
+  } else {
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, fbo_);
+  }
   glPixelStorei(GL_PACK_ALIGNMENT, 1);
   glReadPixels(0, 0, width_, height_, GL_RGBA, GL_UNSIGNED_BYTE, px.data());
   const std::size_t row = static_cast<std::size_t>(width_) * 4;

@@ -61,6 +61,9 @@ struct ImpostorConfig {
   // Clear and draw only the part of each window the pose covers (its box projected on the
   // snapshot plane) instead of the whole square: less fill for the snapshot and the quad.
   bool tight_quads = true;
+  // Texels per screen pixel wanted when choosing the window (section 4.3 uses 1); 2 supersamples
+  // the snapshots (softer, closer to antialiased geometry; 4x the snapshot fill).
+  float texels_per_pixel = 1.0f;
   // Perspective snapshots from the eye (exact when taken) or the paper's orthographic ones.
   bool perspective_snapshots = true;
   // Perspective snapshots only: widen the frustum so one texel covers one screen pixel at Ta

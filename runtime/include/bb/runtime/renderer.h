@@ -53,10 +53,11 @@ class Renderer {
   std::unique_ptr<Impl> impl_;
 };
 
-// An offscreen framebuffer (RGBA8 colour + 24-bit depth) to render into headless.
+// An offscreen framebuffer (RGBA8 colour + 24-bit depth) to render into headless; `samples` > 1
+// makes it multisampled (read_rgba resolves it).
 class OffscreenTarget {
  public:
-  static Result<std::unique_ptr<OffscreenTarget>> create(int width, int height);
+  static Result<std::unique_ptr<OffscreenTarget>> create(int width, int height, int samples = 1);
   ~OffscreenTarget();
   OffscreenTarget(const OffscreenTarget&) = delete;
   OffscreenTarget& operator=(const OffscreenTarget&) = delete;
@@ -69,8 +70,9 @@ class OffscreenTarget {
 
  private:
   OffscreenTarget() = default;
-  int width_ = 0, height_ = 0;
+  int width_ = 0, height_ = 0, samples_ = 1;
   unsigned fbo_ = 0, color_ = 0, depth_ = 0;
+  unsigned resolve_fbo_ = 0, resolve_color_ = 0;
 };
 
 // GPU time of the commands between begin() and end() (GL_TIME_ELAPSED query); elapsed_ms waits
