@@ -26,22 +26,16 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::ordered_json;
 
-struct FlowArgs {
-  std::string model, out = "out/flow", size = "1280x1024", mode = "both", posture = "0.4", view = "8", sweep;
-  int humans = 20, frames = 120;
-  bool json = false, scaling = false, distance_weighting = false;
-  float orbit = 0;
-  std::string scaling_list = "20,100,500,1000,2000,5000,10000";
-  int scaling_frames = 10;
-};
+
 
 ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   ordered_json j;
   j["humans"] = r.humans;
   j["frames"] = r.frames;
   j["size"] = std::to_string(r.width) + "x" + std::to_string(r.height);
-  j["posture"] = s.posture_test ? ordered_json(s.posture_threshold) : ordered_json("off");
-  j["view_deg"] = s.view_test ? ordered_json(s.view_deg) : ordered_json("off");
+  auto r3 = [](float v) { return std::round(static_cast<double>(v) * 1000.0) / 1000.0; };
+  j["posture"] = s.posture_test ? ordered_json(r3(s.posture_threshold)) : ordered_json("off");
+  j["view_deg"] = s.view_test ? ordered_json(r3(s.view_deg)) : ordered_json("off");
   j["geometry_ms"] = r.geometry_ms;
   j["impostor_ms"] = r.impostor_ms;
   j["ratio"] = r.ratio;
@@ -93,7 +87,9 @@ bool parse_threshold(const std::string& v, bool* on, float* value) {
   return true;
 }
 
-int run(const FlowArgs& a) {
+}  // namespace
+
+int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   FlowSettings s;
   s.humans = a.humans;
   s.frames = a.frames;
@@ -161,7 +157,7 @@ int run(const FlowArgs& a) {
       auto r = run_flow(*model, ss, device);
       if (!r) return fail(r.error().message());
       ordered_json j = to_json(*r, ss);
-      j["threshold"] = v;
+      j["threshold"] = std::round(static_cast<double>(v) * 1000.0) / 1000.0;
       sweep.push_back(j);
       csv << v << "," << r->geometry_ms << "," << r->impostor_ms << "," << r->ratio << ","
           << (r->ratio > 0 ? 1 / r->ratio : 0) << "," << r->refresh_fraction << "," << r->psnr_db << "," << r->ssim
@@ -246,9 +242,10 @@ int run(const FlowArgs& a) {
   report["files"] = written;
   std::string json_path = (fs::path(a.out) / "flow.json").string();
   if (auto st = write_text(json_path, report.dump(2) + "\n"); !st) return fail(st.error().message());
+  if (out_report) *out_report = report;
   if (a.json) {
     std::cout << report.dump() << "\n";
-  } else {
+  } else if (!a.quiet) {
     std::printf("flow: %d humans, %d frames, %dx%d, %s\n", s.humans, s.frames, s.width, s.height, device.c_str());
     if (s.geometry) std::printf("  geometry   %8.2f ms/frame\n", result->geometry_ms);
     if (s.impostor)
@@ -262,6 +259,8 @@ int run(const FlowArgs& a) {
   }
   return 0;
 }
+
+namespace {
 
 void add_flow_command(CLI::App& app, int* status) {
   auto* cmd = app.add_subcommand("flow", "The paper's human flow test bed: humans walking in circles, geometry vs impostors");
@@ -281,7 +280,7 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--scaling-frames", a->scaling_frames, "Frames per crowd size of --scaling")->capture_default_str();
   cmd->add_option("-o,--output", a->out, "Output folder")->capture_default_str();
   cmd->add_flag("--json", a->json, "Print the report as one JSON object on stdout");
-  cmd->callback([=] { *status = run(*a); });
+  cmd->callback([=] { *status = run_flow_command(*a, nullptr); });
 }
 
 const Registrar registrar(40, add_flow_command);

@@ -14,6 +14,7 @@
 #include "bb/runtime/crowd.h"
 #include "bb/runtime/model.h"
 #include "bb/result.h"
+#include <nlohmann/json.hpp>
 
 namespace bb::cli {
 
@@ -57,5 +58,20 @@ struct FlowResult {
 
 // Runs the test bed on `model` (must have a current GL context). `device` names the GL renderer.
 Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& settings, const std::string& device);
+
+// What `bodybuilder flow` was asked (the CLI's flags).
+struct FlowArgs {
+  std::string model, out = "out/flow", size = "1280x1024", mode = "both", posture = "0.4", view = "8", sweep;
+  int humans = 20, frames = 120;
+  bool json = false, scaling = false, distance_weighting = false;
+  float orbit = 0;
+  bool quiet = false;  // no summary on stdout (the demo prints its own)
+  std::string scaling_list = "20,100,500,1000,2000,5000,10000";
+  int scaling_frames = 10;
+};
+
+// Runs `bodybuilder flow` with these arguments: writes its files under a.out and, when given,
+// its JSON report into `report`. Returns the exit status.
+int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* report);
 
 }  // namespace bb::cli

@@ -1,0 +1,42 @@
+// The whole offline pipeline for one body: modeler -> mesher -> decimate -> glTF.
+//
+//   LOD 0      contour-sampled body + full-resolution OpenVDB head, hands and feet
+//   LOD 1..K-2 coarser contours + the OpenVDB extremities decimated to a budget (seams locked)
+//   LOD K-1    coarsest contours + simple contour-sampled extremities textured from LOD 0 (proxies)
+// plus a procedural walk clip and any imported clips, written as one GLB (and optionally one
+// GLB per level).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "bb/exporter/gltf_export.h"
+#include "bb/mesher/mesher.h"
+#include "bb/modeler/body.h"
+#include "bb/motion/clip.h"
+#include "bb/result.h"
+
+namespace bb::exporter {
+
+struct BuildOptions {
+  int lods = 4;                              // levels, 2..8 (the default chain has 4)
+  std::vector<float> walk_speeds = {1.2f};   // one baked walk clip per speed, m/s
+  std::vector<motion::Clip> extra_clips;     // imported clips (already retargeted)
+  bool proxies = true;                       // textured proxies at the lowest level
+  bool measure_errors = true;                // distances to the implicit surface per level
+};
+
+struct BuildTimes {
+  double mesh = 0, decimate = 0, proxies = 0, clips = 0, encode = 0, total = 0;  // seconds
+};
+
+struct BuildOutput {
+  ExportInput input;               // what was written (meshes, reports, clips, textures)
+  std::vector<uint8_t> glb;        // the whole LOD set
+  BuildTimes times;
+};
+
+Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& options = {});
+
+}  // namespace bb::exporter
