@@ -2,6 +2,8 @@
 // volumeToMesh, cut at the seam plane, vertices projected back onto the skin. The only
 // translation unit that includes OpenVDB.
 #include <algorithm>
+#include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <cmath>
 #include <thread>
@@ -23,25 +25,78 @@ struct Grid {
   std::vector<float> values;  // iso - F: negative inside
 };
 
-// Samples iso - F on the grid nodes (two threads, z-slabs).
+// Samples iso - F on the grid nodes (two threads, z-slabs). Coarse to fine: the field is
+// evaluated on every other node first; a 2x2x2-voxel cell whose eight corners are all far
+// outside (F < 0.3) or deep inside (F > 3) gets its other nodes by trilinear interpolation, the
+// rest is evaluated exactly. The surface (F = 1) only passes through exactly evaluated cells;
+// features thinner than a cell (2 voxels) whose field stays under 0.3 at all its corners could
+// be missed, which the smallest primitives (fingers, ears: 15 mm and more) never are.
 Grid sample(const SubField& field, const modeler::Aabb& box, float voxel) {
   Grid g;
   g.voxel = voxel;
   g.origin = box.min - glm::vec3(2 * voxel);
   g.dims = glm::ivec3(glm::ceil((box.max - box.min) / voxel)) + 5;
+  g.dims += (g.dims + 1) % 2;  // odd: the coarse lattice covers both ends
   g.values.resize(size_t(g.dims.x) * g.dims.y * g.dims.z);
-  auto work = [&](int z0, int z1) {
-    for (int z = z0; z < z1; ++z)
-      for (int y = 0; y < g.dims.y; ++y)
-        for (int x = 0; x < g.dims.x; ++x) {
-          glm::vec3 p = g.origin + voxel * glm::vec3(x, y, z);
-          g.values[(size_t(z) * g.dims.y + y) * g.dims.x + x] = modeler::kIso - field.field(p);
-        }
+  const glm::ivec3 D = g.dims, C = (D - 1) / 2;  // C: cells per axis
+  auto at = [&](int x, int y, int z) -> float& { return g.values[(size_t(z) * D.y + y) * D.x + x]; };
+  auto eval = [&](int x, int y, int z) { return modeler::kIso - field.field(g.origin + voxel * glm::vec3(x, y, z)); };
+  std::vector<char> exact(size_t(C.x) * C.y * C.z, 0);
+  auto cell = [&](int x, int y, int z) -> char& { return exact[(size_t(z) * C.y + y) * C.x + x]; };
+  auto parallel = [&](int n, auto&& fn) {
+    std::thread t([&] { for (int z = 0; z < n / 2; ++z) fn(z); });
+    for (int z = n / 2; z < n; ++z) fn(z);
+    t.join();
   };
-  int mid = g.dims.z / 2;
-  std::thread t(work, 0, mid);
-  work(mid, g.dims.z);
-  t.join();
+  parallel(C.z + 1, [&](int cz) {
+    for (int cy = 0; cy <= C.y; ++cy)
+      for (int cx = 0; cx <= C.x; ++cx) at(2 * cx, 2 * cy, 2 * cz) = eval(2 * cx, 2 * cy, 2 * cz);
+  });
+  const float far_out = modeler::kIso - 0.3f, deep_in = modeler::kIso - 3.0f;
+  parallel(C.z, [&](int cz) {
+    for (int cy = 0; cy < C.y; ++cy)
+      for (int cx = 0; cx < C.x; ++cx) {
+        bool out = true, in = true;
+        for (int k = 0; k < 8; ++k) {
+          float v = at(2 * (cx + (k & 1)), 2 * (cy + ((k >> 1) & 1)), 2 * (cz + (k >> 2)));
+          out &= v > far_out;
+          in &= v < deep_in;
+        }
+        cell(cx, cy, cz) = !(out || in);
+      }
+  });
+  parallel(D.z, [&](int z) {
+    for (int y = 0; y < D.y; ++y)
+      for (int x = 0; x < D.x; ++x) {
+        if (x % 2 == 0 && y % 2 == 0 && z % 2 == 0) continue;
+        // Cells containing this node: one per odd coordinate, up to two per even one.
+        int lo[3], hi[3];
+        const int p[3] = {x, y, z}, cmax[3] = {C.x - 1, C.y - 1, C.z - 1};
+        for (int d = 0; d < 3; ++d) {
+          if (p[d] % 2) lo[d] = hi[d] = (p[d] - 1) / 2;
+          else { lo[d] = std::max(0, p[d] / 2 - 1); hi[d] = std::min(cmax[d], p[d] / 2); }
+        }
+        bool need = false;
+        for (int cz = lo[2]; cz <= hi[2] && !need; ++cz)
+          for (int cy = lo[1]; cy <= hi[1] && !need; ++cy)
+            for (int cx = lo[0]; cx <= hi[0] && !need; ++cx) need = cell(cx, cy, cz);
+        if (need) { at(x, y, z) = eval(x, y, z); continue; }
+        // Trilinear in cell (lo): fractions 0, 0.5 or 1 per axis.
+        float v = 0;
+        for (int k = 0; k < 8; ++k) {
+          float w = 1;
+          int q[3];
+          for (int d = 0; d < 3; ++d) {
+            int bit = (k >> d) & 1;
+            float f = float(p[d] - 2 * lo[d]) * 0.5f;
+            w *= bit ? f : 1 - f;
+            q[d] = 2 * (lo[d] + bit);
+          }
+          if (w > 0) v += w * at(q[0], q[1], q[2]);
+        }
+        at(x, y, z) = v;
+      }
+  });
   return g;
 }
 
@@ -85,10 +140,17 @@ void mesh_grid(const Grid& g, std::vector<glm::vec3>& pos, std::vector<uint32_t>
 
 Result<Extremity> mesh_extremity(const SubField& field, const modeler::Aabb& box, float voxel,
                                  const glm::vec3& plane_point, const glm::vec3& n) {
+  auto t0 = std::chrono::steady_clock::now();
   Grid g = sample(field, box, voxel);
+  auto t1 = std::chrono::steady_clock::now();
   std::vector<glm::vec3> pos;
   std::vector<uint32_t> idx;
   mesh_grid(g, pos, idx);
+  auto t2 = std::chrono::steady_clock::now();
+  if (std::getenv("BB_MESHER_DEBUG"))
+    std::fprintf(stderr, "extremity: %d x %d x %d nodes, sample %.1f ms, volumeToMesh %.1f ms, %zu triangles\n",
+                 g.dims.x, g.dims.y, g.dims.z, std::chrono::duration<double, std::milli>(t1 - t0).count(),
+                 std::chrono::duration<double, std::milli>(t2 - t1).count(), idx.size() / 3);
   if (idx.empty()) return Error{"", "extremity", "OpenVDB found no surface"};
   // Signed distances to the plane; keep s > 0. Nudge vertices off the plane.
   const float eps = 1e-5f * voxel;
