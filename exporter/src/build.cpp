@@ -58,14 +58,17 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
   if (!lods) return lods.error();
   out.times.mesh = since(t0);
 
-  // Middle levels: decimate the full-resolution extremities to a budget that keeps them in
-  // proportion with the body's contours at that level.
+  // LOD 0 and the middle levels: decimate the full-resolution extremities to a budget (LOD 0: a
+  // fixed one; then in proportion with the body's contours at that level). LOD 0 keeps the
+  // undecimated extremities as the source of the proxies' texture.
   t0 = Clock::now();
-  for (int l = 1; l + 1 < k; ++l) {
+  mesher::SkinnedMesh full_extremities = (*lods)[0].mesh;
+  for (int l = 0; l + 1 < k; ++l) {
     mesher::Lod& lod = (*lods)[l];
     size_t ext = extremity_triangles(lod.mesh);
     size_t body_tris = lod.mesh.triangle_count() - ext;
-    size_t budget = std::max<size_t>(200, body_tris * 45 / 100);
+    size_t budget = l == 0 ? opt.lod0_extremity_triangles : std::max<size_t>(200, body_tris * 45 / 100);
+    if (budget == 0 || ext <= budget) continue;
     decimate::Report rep;
     auto dec = decimate::decimate_extremities(lod.mesh, budget, &rep);
     if (!dec) return Error{"", "level " + std::to_string(l), "decimation failed: " + dec.error().message()};
@@ -103,7 +106,7 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
   // Lowest level: textured proxies baked from LOD 0.
   t0 = Clock::now();
   if (opt.proxies) {
-    auto prox = decimate::bake_proxies(out.input.lods.back().mesh, out.input.lods.front().mesh);
+    auto prox = decimate::bake_proxies(out.input.lods.back().mesh, full_extremities);
     if (!prox) return Error{"", "proxies", prox.error().message()};
     out.input.lods.back().mesh = std::move(prox->mesh);
     out.input.lods.back().texture = 0;

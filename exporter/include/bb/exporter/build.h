@@ -1,6 +1,6 @@
 // The whole offline pipeline for one body: modeler -> mesher -> decimate -> glTF.
 //
-//   LOD 0      contour-sampled body + full-resolution OpenVDB head, hands and feet
+//   LOD 0      contour-sampled body + OpenVDB head, hands and feet decimated to a budget
 //   LOD 1..K-2 coarser contours + the OpenVDB extremities decimated to a budget (seams locked)
 //   LOD K-1    coarsest contours + simple contour-sampled extremities textured from LOD 0 (proxies)
 // plus a procedural walk clip and any imported clips, written as one GLB (and optionally one
@@ -24,6 +24,7 @@ struct BuildOptions {
   std::vector<float> walk_speeds = {1.2f};   // one baked walk clip per speed, m/s
   std::vector<motion::Clip> extra_clips;     // imported clips (already retargeted)
   bool proxies = true;                       // textured proxies at the lowest level
+  size_t lod0_extremity_triangles = 4000;    // head, hands and feet of LOD 0 (0: full resolution)
   bool measure_errors = true;                // distances to the implicit surface per level
 };
 
