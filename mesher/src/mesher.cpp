@@ -278,32 +278,34 @@ void cast_cup(const SubField& field, const PieceSpec& spec, const Frame& seam, c
     if (dn < -1e-6f) max_t = std::min(max_t, sc / -dn);
     return c + sample_ray(field, c, d, max_t, 0.005f) * d;
   };
-  // Latitudes evenly spaced in arc length along the meridians (averaged), so that long parts
-  // (toes, fingers) get their share of rings whatever the density.
+  // Latitudes evenly spaced in arc length along each meridian, so that long parts (toes,
+  // fingers) get their share of rings whatever the density. Per meridian the rings stay in
+  // order (s increases), so the cup remains a radial graph around c and cannot fold.
   const int fine = 48;
-  std::vector<double> arc(fine + 1, 0.0);
-  for (size_t k = 0; k < d0.size(); ++k) {
+  const size_t n_mer = d0.size();
+  std::vector<std::vector<double>> arc(n_mer, std::vector<double>(fine + 1, 0.0));
+  for (size_t k = 0; k < n_mer; ++k) {
     glm::vec3 prev_p = start[k];
     for (int i = 1; i <= fine; ++i) {
       glm::vec3 p = cast(k, float(i) / fine);
-      arc[i] += glm::distance(p, prev_p);
+      arc[k][i] = arc[k][i - 1] + glm::distance(p, prev_p);
       prev_p = p;
     }
   }
-  for (int i = 1; i <= fine; ++i) arc[i] += arc[i - 1];
-  auto s_at = [&](double target) {
+  auto s_at = [&](size_t k, double frac) {
+    const std::vector<double>& a = arc[k];
+    double target = frac * a[fine];
     int i = 1;
-    while (i < fine && arc[i] < target) ++i;
-    double a0 = arc[i - 1], a1 = arc[i];
+    while (i < fine && a[i] < target) ++i;
+    double a0 = a[i - 1], a1 = a[i];
     double f = a1 > a0 ? (target - a0) / (a1 - a0) : 0.0;
     return float((i - 1 + f) / fine);
   };
   Ring prev = rim;
   for (int j = 1; j < lat; ++j) {
-    float s = s_at(arc[fine] * j / lat);
     Ring r;
-    for (size_t k = 0; k < d0.size(); ++k) {
-      r.ids.push_back(mesh.add(cast(k, s), part, 0, spec.ext_region));
+    for (size_t k = 0; k < n_mer; ++k) {
+      r.ids.push_back(mesh.add(cast(k, s_at(k, double(j) / lat)), part, 0, spec.ext_region));
       r.angles.push_back(angles[k]);
     }
     strip(prev, r, idx);
