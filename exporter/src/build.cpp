@@ -1,6 +1,8 @@
 #include "bb/exporter/build.h"
 
 #include <algorithm>
+#include <atomic>
+#include <thread>
 #include <chrono>
 
 #include "bb/decimate/extremities.h"
@@ -63,15 +65,20 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
   // undecimated extremities as the source of the proxies' texture.
   t0 = Clock::now();
   mesher::SkinnedMesh full_extremities = (*lods)[0].mesh;
-  for (int l = 0; l + 1 < k; ++l) {
+  // Levels are independent: decimate them on all cores.
+  std::vector<std::string> errors(k);
+  auto level = [&](int l) {
     mesher::Lod& lod = (*lods)[l];
     size_t ext = extremity_triangles(lod.mesh);
     size_t body_tris = lod.mesh.triangle_count() - ext;
     size_t budget = l == 0 ? opt.lod0_extremity_triangles : std::max<size_t>(200, body_tris * 45 / 100);
-    if (budget == 0 || ext <= budget) continue;
+    if (budget == 0 || ext <= budget) return;
     decimate::Report rep;
     auto dec = decimate::decimate_extremities(lod.mesh, budget, &rep);
-    if (!dec) return Error{"", "level " + std::to_string(l), "decimation failed: " + dec.error().message()};
+    if (!dec) {
+      errors[l] = "level " + std::to_string(l) + ": decimation failed: " + dec.error().message();
+      return;
+    }
     lod.mesh = std::move(*dec);
     auto check = mesher::check_mesh(lod.mesh.positions, lod.mesh.indices, true);
     lod.report.triangles = lod.mesh.triangle_count();
@@ -84,15 +91,27 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
     lod.report.self_intersections = check.self_intersections > 0;
     // Triangle inequality: the decimated mesh is within (its distance to the full one) + (the
     // full one's distance to the skin) of the skin.
-    float height = lod.report.hausdorff_rel > 0 ? static_cast<float>(lod.report.hausdorff_m / lod.report.hausdorff_rel)
-                                                : 0.0f;
+    double height = lod.report.hausdorff_rel > 0 ? lod.report.hausdorff_m / lod.report.hausdorff_rel : 0.0;
     lod.report.hausdorff_m += rep.hausdorff_m;
     lod.report.mean_m += rep.mean_m;
     if (height > 0) {
       lod.report.hausdorff_rel = lod.report.hausdorff_m / height;
       lod.report.mean_rel = lod.report.mean_m / height;
     }
+  };
+  {
+    std::vector<std::thread> threads;
+    unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+    std::atomic<int> next{0};
+    auto worker = [&] {
+      for (int l; (l = next++) < k - 1;) level(l);
+    };
+    for (unsigned c = 1; c < std::min<unsigned>(cores, k - 1); ++c) threads.emplace_back(worker);
+    worker();
+    for (auto& t : threads) t.join();
   }
+  for (const auto& e : errors)
+    if (!e.empty()) return Error{"", "", e};
   out.times.decimate = since(t0);
 
   out.input.body = &body;
