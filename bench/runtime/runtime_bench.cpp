@@ -105,6 +105,23 @@ void BM_UpdateGeometry(benchmark::State& state) {
 }
 BENCHMARK(BM_UpdateGeometry)->Arg(10000)->Unit(benchmark::kMicrosecond);
 
+// Loading (parse, validate, build, bake at 60 Hz, bounds, posture pairs) of each shared model.
+void BM_Load(benchmark::State& state, const char* file) {
+  const std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/" + file;
+  for (auto _ : state) {
+    auto r = load_model(path);
+    if (!r) {
+      state.SkipWithError(r.error().message().c_str());
+      return;
+    }
+    benchmark::DoNotOptimize(r->lods.data());
+  }
+}
+BENCHMARK_CAPTURE(BM_Load, CesiumMan, "CesiumMan.glb")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Load, Fox, "Fox.glb")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Load, RiggedSimple, "RiggedSimple.gltf")->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_Load, SimpleSkin, "SimpleSkin.gltf")->Unit(benchmark::kMillisecond);
+
 }  // namespace
 
 BENCHMARK_MAIN();

@@ -1,6 +1,7 @@
 // GL 4.5 back end of the runtime: GPU skinning from baked clips, instanced geometry, the
 // snapshot passes into the shared atlas, and the camera-facing impostor quads.
 #include <algorithm>
+#include <cassert>
 #include <cstddef>
 #include <cstring>
 #include <string>
@@ -444,6 +445,7 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
       for (std::size_t page = 0; page < plan.snapshots.size(); ++page) {
         const auto& list = plan.snapshots[page];
         if (list.empty()) continue;
+        assert(static_cast<int>(page) < d.config.max_pages && "plan from a planner with another ImpostorConfig");
         const GLsizei count = static_cast<GLsizei>(list.size());
         glNamedFramebufferTextureLayer(d.atlas_fbo, GL_COLOR_ATTACHMENT0, d.atlas, 0, static_cast<GLint>(page));
         const int lod = std::clamp(plan.page_lod[page], 0, static_cast<int>(d.lods.size()) - 1);

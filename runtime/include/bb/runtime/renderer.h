@@ -40,7 +40,9 @@ class Renderer {
 
   // Draws one frame into the currently bound draw framebuffer, with the plan's camera viewport
   // (0, 0, width, height). Does not clear it. Snapshots first (they change the atlas), then
-  // geometry, then impostors.
+  // geometry, then impostors. `plan` must come from a FramePlanner of the same model and config.
+  // GL state left changed: program 0, VAO 0, texture units 0-2, viewport, depth test on (LESS,
+  // writes on), blending and face culling off.
   void draw(const FramePlan& plan, const DrawOptions& options = {});
 
   // Copies page `page` of the atlas (RGBA8, premultiplied, rows bottom to top) for inspection.
