@@ -15,10 +15,7 @@
 
 #include "bb/exporter/build.h"
 #include "bb/modeler/body.h"
-#if __has_include("bb/motion/bvh.h")
 #include "bb/motion/bvh.h"
-#define BB_HAVE_BVH 1
-#endif
 #include "commands.h"
 #include "io.h"
 
@@ -65,11 +62,7 @@ void run_job(Job& job, const BuildArgs& a) {
   opt.lods = a.lods;
   opt.measure_errors = !a.no_errors;
   for (const auto& m : a.motions) {
-#if BB_HAVE_BVH
     auto clip = motion::load_bvh(m, *body.skeleton);
-#else
-    Result<motion::Clip> clip = Error{m, "", "BVH import is not built yet"};
-#endif
     if (!clip) {
       job.error = clip.error().message();
       finish();

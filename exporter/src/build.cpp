@@ -7,9 +7,7 @@
 
 #include "bb/decimate/extremities.h"
 #include "bb/mesher/mesh_check.h"
-#if BB_HAVE_WALK
 #include "bb/motion/walk.h"
-#endif
 
 namespace bb::exporter {
 
@@ -134,7 +132,6 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
   out.times.proxies = since(t0);
 
   t0 = Clock::now();
-#if BB_HAVE_WALK
   for (float v : opt.walk_speeds) {
     motion::WalkParams wp;
     wp.speed_mps = v;
@@ -142,7 +139,6 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
     if (!walk) return walk.error();
     out.input.clips.push_back(std::move(*walk));
   }
-#endif
   for (const auto& c : opt.extra_clips) out.input.clips.push_back(c);
   out.times.clips = since(t0);
 

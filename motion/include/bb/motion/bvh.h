@@ -1,0 +1,56 @@
+// Motion capture: BVH import, retargeted onto the bodybuilder skeleton.
+//
+// Parsing accepts LF and CRLF files, tabs, any rotation order per joint and any subset of the six
+// channels; errors name the file, the line and the reason. Retargeting maps the BVH bones by name
+// (the two CMU namings: Hips/LHipJoint/LeftUpLeg/LeftLeg/LeftFoot/LeftToeBase/LowerBack/Spine/
+// Spine1/Neck/Neck1/Head/LeftShoulder/LeftArm/LeftForeArm/LeftHand..., and
+// Hips/LeftHip/LeftKnee/LeftAnkle/LeftToe/lowerback/Chest/Chest2/lowerneck/Neck/Head/LeftCollar/
+// LeftShoulder/LeftElbow/LeftWrist...), takes the root's full rotation and translation (scaled by
+// the ratio of leg lengths) and, for every other mapped joint, turns our link to point the way the
+// BVH bone points (a least-squares fit of the joint's own DOFs, clamped to their limits; the twist
+// about a bone is not transferred). The clip keeps the BVH's frame count and frame rate.
+#pragma once
+
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+#include "bb/modeler/skeleton.h"
+#include "bb/motion/clip.h"
+#include "bb/result.h"
+
+namespace bb::motion {
+
+struct BvhJoint {
+  std::string name;
+  int parent = -1;
+  glm::vec3 offset{0};
+  std::vector<int> channels;  // 0..2 X/Y/Zposition, 3..5 X/Y/Zrotation, in file order
+  int first_channel = 0;      // index of its first value in a frame
+  bool end_site = false;
+};
+
+struct BvhFile {
+  std::vector<BvhJoint> joints;  // parents before children
+  int channel_count = 0;
+  float frame_time = 0;          // seconds
+  std::vector<std::vector<float>> frames;
+};
+
+// Parses BVH text; `file` names it in errors ("file: line N: reason").
+Result<BvhFile> parse_bvh(std::string_view text, std::string_view file);
+
+// World positions of every BVH joint in frame `frame` (the rest pose when out of range).
+std::vector<glm::vec3> world_positions(const BvhFile& bvh, size_t frame);
+
+// Reads, parses and retargets a BVH file onto `target` (needs the H-Anim joints of
+// data/skeleton.json). The clip is named after the file's stem.
+Result<Clip> load_bvh(const std::string& path, const modeler::Skeleton& target);
+
+// Retargets parsed motion; `name` becomes the clip's name.
+Result<Clip> retarget(const BvhFile& bvh, const modeler::Skeleton& target, const std::string& name,
+                      std::string_view file = {});
+
+}  // namespace bb::motion

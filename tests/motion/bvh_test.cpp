@@ -1,0 +1,117 @@
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include <gtest/gtest.h>
+
+#include "bb/modeler/body.h"
+#include "bb/motion/bvh.h"
+
+using namespace bb;
+
+namespace {
+
+const char* kTiny =
+    "HIERARCHY\r\n"
+    "ROOT Hips\r\n{\r\n\tOFFSET 0 0 0\r\n\tCHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation\r\n"
+    "\tJOINT LeftUpLeg\r\n\t{\r\n\t\tOFFSET 1 0 0\r\n\t\tCHANNELS 3 Zrotation Xrotation Yrotation\r\n"
+    "\t\tEnd Site\r\n\t\t{\r\n\t\t\tOFFSET 0 -2 0\r\n\t\t}\r\n\t}\r\n}\r\n"
+    "MOTION\r\nFrames: 2\r\nFrame Time: 0.5\r\n"
+    "0 3 0 0 0 0 0 0 0\r\n"
+    "1 3 0 0 90 0 0 45 0\r\n";
+
+std::string data(const char* name) { return std::string(BB_SHARED_DATA_DIR) + "/bvh/" + name; }
+
+}  // namespace
+
+TEST(Bvh, ParsesCrlfAndPerJointRotationOrders) {
+  auto r = motion::parse_bvh(kTiny, "tiny.bvh");
+  ASSERT_TRUE(r) << r.error().message();
+  ASSERT_EQ(r->joints.size(), 3u);  // Hips, LeftUpLeg, its end site
+  EXPECT_EQ(r->joints[1].name, "LeftUpLeg");
+  EXPECT_EQ(r->joints[1].parent, 0);
+  EXPECT_TRUE(r->joints[2].end_site);
+  EXPECT_EQ(r->channel_count, 9);
+  EXPECT_EQ(r->joints[1].channels, (std::vector<int>{5, 3, 4}));  // Z, X, Y
+  EXPECT_FLOAT_EQ(r->frame_time, 0.5f);
+  ASSERT_EQ(r->frames.size(), 2u);
+  EXPECT_FLOAT_EQ(r->frames[1][4], 90.0f);
+  EXPECT_FLOAT_EQ(r->frames[1][7], 45.0f);
+}
+
+struct BadBvh {
+  std::string text, where, reason;
+};
+
+TEST(Bvh, MalformedFilesNameTheLineAndReason) {
+  std::string t = kTiny;
+  std::vector<BadBvh> cases = {
+      {"HIERARCHY\nROOT Hips\n{\nOFFSET 0 0\n", "line 4", "expected a number"},
+      {std::string(t).replace(t.find("Zrotation Xrotation Yrotation"), 9, "Qrotation"), "line 9", "unknown channel"},
+      {std::string(t).replace(t.find("CHANNELS 3"), 10, "CHANNELS 9"), "line 9", "0..6"},
+      {t.substr(0, t.rfind("1 3 0 0 90")), "line 20", "truncated"},
+      {std::string(t).replace(t.find("0 3 0 0 0 0 0 0 0"), 17, "0 3 0 0 0 0 0 0 0 7"), "line 19", "more than the 9 values"},
+      {std::string(t).replace(t.find("MOTION"), 6, "MOTON"), "line 16", "expected MOTION"},
+      {std::string(t).replace(t.find("0 3 0 0 0 0 0 0 0"), 1, "x"), "line 19", "expected a number"},
+  };
+  for (const auto& c : cases) {
+    auto r = motion::parse_bvh(c.text, "bad.bvh");
+    ASSERT_FALSE(r) << c.reason;
+    EXPECT_EQ(r.error().file, "bad.bvh");
+    EXPECT_EQ(r.error().where, c.where) << r.error().message();
+    EXPECT_NE(r.error().reason.find(c.reason), std::string::npos) << r.error().message();
+  }
+  auto missing = motion::load_bvh("/nonexistent.bvh", modeler::default_skeleton());
+  ASSERT_FALSE(missing);
+  EXPECT_NE(missing.error().message().find("/nonexistent.bvh"), std::string::npos);
+}
+
+TEST(Bvh, CmuClipsKeepTheirFramesAndRateAndWalk) {
+  if (!std::filesystem::exists(data("131_01.bvh"))) GTEST_SKIP() << "../shared/data/bvh is absent";
+  const auto& sk = modeler::default_skeleton();
+  struct Expect { const char* file; size_t frames; } files[] = {{"131_01.bvh", 994}, {"01_01.bvh", 2752}};
+  for (const auto& f : files) {
+    auto clip = motion::load_bvh(data(f.file), sk);
+    ASSERT_TRUE(clip) << clip.error().message();
+    EXPECT_EQ(clip->frames.size(), f.frames);
+    EXPECT_NEAR(clip->fps, 120.0f, 0.01f);
+    EXPECT_NEAR(clip->duration(), (f.frames - 1) / 120.0f, 0.01f);
+    for (const auto& p : clip->frames) ASSERT_TRUE(sk.within_limits(p));
+  }
+  // Retargeting: our thighs, shanks and upper arms point the way the captured bones point.
+  auto text = [](const std::string& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  };
+  auto bvh = motion::parse_bvh(text(data("131_01.bvh")), "131_01.bvh");
+  ASSERT_TRUE(bvh);
+  auto clip = motion::retarget(*bvh, sk, "131_01");
+  ASSERT_TRUE(clip);
+  auto idx = [&](const char* n) {
+    for (size_t i = 0; i < bvh->joints.size(); ++i)
+      if (bvh->joints[i].name == n) return static_cast<int>(i);
+    return -1;
+  };
+  struct Bone { const char *a, *b, *ours_a, *ours_b; } bones[] = {
+      {"LeftHip", "LeftKnee", "l_hip", "l_knee"},     {"LeftKnee", "LeftAnkle", "l_knee", "l_ankle"},
+      {"RightHip", "RightKnee", "r_hip", "r_knee"},   {"RightKnee", "RightAnkle", "r_knee", "r_ankle"},
+      {"LeftShoulder", "LeftElbow", "l_shoulder", "l_elbow"}};
+  for (const auto& bone : bones) {
+    int within = 0, n = 0;
+    for (size_t f = 0; f < clip->frames.size(); f += 10, ++n) {
+      auto p = motion::world_positions(*bvh, f);
+      glm::vec3 d = glm::normalize(p[idx(bone.b)] - p[idx(bone.a)]);
+      auto w = sk.world_transforms(clip->frames[f]);
+      glm::vec3 o = glm::normalize(glm::vec3(w[sk.find_joint(bone.ours_b)][3] - w[sk.find_joint(bone.ours_a)][3]));
+      within += glm::dot(d, o) > std::cos(glm::radians(20.0f));
+    }
+    // Some captured poses lie beyond our joint limits (the knee has one DOF): 80 % is the bar.
+    EXPECT_GT(within, n * 8 / 10) << bone.a;
+  }
+  // The body travels (the root follows the hips, scaled).
+  auto first = sk.world_transforms(clip->frames.front()), last = sk.world_transforms(clip->frames.back());
+  EXPECT_GT(glm::length(glm::vec3(last[0][3] - first[0][3])), 1.0f);
+}
