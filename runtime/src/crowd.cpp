@@ -176,7 +176,8 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
           s.vo = glm::vec4(sc.vo, sc.perspective ? 1.0f : 0.0f);
           s.ta = glm::vec4(ta, radius);
           const float half = static_cast<float>(win.size) / page;  // NDC half extent = size / page
-          s.window = glm::vec4(-1.0f + (2.0f * win.x + win.size) / page, -1.0f + (2.0f * win.y + win.size) / page, half, 0.0f);
+          s.window = glm::vec4(-1.0f + (2.0f * win.x + win.size) / page, -1.0f + (2.0f * win.y + win.size) / page, half,
+                               static_cast<float>(win.page));
           s.rect = cs.rect;
           plan_.snapshots[win.page].push_back(s);
           plan_.page_lod[win.page] = window_lod[win.size_class];

@@ -1,8 +1,10 @@
 // GL 4.5 back end of the runtime: GPU skinning from baked clips, instanced geometry, the
 // snapshot passes into the shared atlas, and the camera-facing impostor quads.
 #include <algorithm>
+#include <array>
 #include <cassert>
 #include <cstddef>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -79,6 +81,9 @@ void main() {
     c = vec4(xy, clamp(depth / r, -1.0, 1.0), 1.0);
   }
   gl_Position = vec4(i_window.xy * c.w + c.xy * i_window.z, c.z, c.w);
+#ifdef BB_LAYERED
+  gl_Layer = int(i_window.w);
+#endif
   // Only inside the part of the window that was cleared.
   gl_ClipDistance[0] = c.x - i_rect.x * c.w;
   gl_ClipDistance[1] = i_rect.z * c.w - c.x;
@@ -112,6 +117,9 @@ out float gl_ClipDistance[4];
 void main() {
   vec2 c = mix(i_rect.xy, i_rect.zw, vec2(gl_VertexID & 1, gl_VertexID >> 1));
   gl_Position = vec4(i_window.xy + c * i_window.z, 1.0, 1.0);
+#ifdef BB_LAYERED
+  gl_Layer = int(i_window.w);
+#endif
   for (int k = 0; k < 4; ++k) gl_ClipDistance[k] = 1.0;
 }
 )";
@@ -160,6 +168,24 @@ void main() {
   }
 }
 )";
+
+// With ARB_shader_viewport_layer_array the vertex shader picks the atlas page (gl_Layer), so all
+// the snapshots of a frame go out in one pass over a layered framebuffer.
+std::string layered(const std::string& src) {
+  const std::string v = "#version 450 core\n";
+  if (src.compare(0, v.size(), v) != 0) return src;
+  return v + "#extension GL_ARB_shader_viewport_layer_array : require\n#define BB_LAYERED 1\n" + src.substr(v.size());
+}
+
+bool has_gl_extension(const char* name) {
+  GLint n = 0;
+  glGetIntegerv(GL_NUM_EXTENSIONS, &n);
+  for (GLint i = 0; i < n; ++i)
+    if (const char* e = reinterpret_cast<const char*>(glGetStringi(GL_EXTENSIONS, static_cast<GLuint>(i)));
+        e && std::strcmp(e, name) == 0)
+      return true;
+  return false;
+}
 
 Result<GLuint> compile(GLenum type, const std::string& src, const char* what) {
   GLuint s = glCreateShader(type);
@@ -228,6 +254,8 @@ struct Renderer::Impl {
   GLuint prog_geometry = 0, prog_snapshot = 0, prog_clear = 0, prog_billboard = 0;
   GLint loc_geometry_viewproj = -1;
   GLuint atlas = 0, atlas_depth = 0, atlas_fbo = 0;
+  bool layered = false;  // one snapshot pass for all pages (depth is then a texture array too)
+  std::vector<std::array<GLuint, 2>> lod_runs;  // per LOD: (count, first) in snapshot_scratch
   GLuint vao_billboard = 0;
   StreamBuffer instances, snapshots, billboards;
   std::vector<InstanceGpu> instance_scratch;
@@ -271,10 +299,12 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   auto pg = program(std::string(kCommon) + kGeometryVs, kShadeFs, "geometry shader");
   if (!pg) return pg.error();
   d.prog_geometry = *pg;
-  auto ps = program(std::string(kCommon) + kSnapshotVs, kShadeFs, "snapshot shader");
+  d.layered = has_gl_extension("GL_ARB_shader_viewport_layer_array") && !std::getenv("BB_NO_LAYERED_SNAPSHOTS");
+  auto ps = program(d.layered ? layered(std::string(kCommon) + kSnapshotVs) : std::string(kCommon) + kSnapshotVs, kShadeFs,
+                    "snapshot shader");
   if (!ps) return ps.error();
   d.prog_snapshot = *ps;
-  auto pc = program(kClearVs, kClearFs, "window clear shader");
+  auto pc = program(d.layered ? layered(kClearVs) : std::string(kClearVs), kClearFs, "window clear shader");
   if (!pc) return pc.error();
   d.prog_clear = *pc;
   auto pb = program(kBillboardVs, kBillboardFs, "impostor shader");
@@ -387,11 +417,18 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   glTextureParameteri(d.atlas, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
   glTextureParameteri(d.atlas, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
   glTextureParameteri(d.atlas, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-  glCreateRenderbuffers(1, &d.atlas_depth);
-  glNamedRenderbufferStorage(d.atlas_depth, GL_DEPTH_COMPONENT24, config.page_size, config.page_size);
   glCreateFramebuffers(1, &d.atlas_fbo);
-  glNamedFramebufferTextureLayer(d.atlas_fbo, GL_COLOR_ATTACHMENT0, d.atlas, 0, 0);
-  glNamedFramebufferRenderbuffer(d.atlas_fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, d.atlas_depth);
+  if (d.layered) {
+    glCreateTextures(GL_TEXTURE_2D_ARRAY, 1, &d.atlas_depth);
+    glTextureStorage3D(d.atlas_depth, 1, GL_DEPTH_COMPONENT24, config.page_size, config.page_size, config.max_pages);
+    glNamedFramebufferTexture(d.atlas_fbo, GL_COLOR_ATTACHMENT0, d.atlas, 0);
+    glNamedFramebufferTexture(d.atlas_fbo, GL_DEPTH_ATTACHMENT, d.atlas_depth, 0);
+  } else {
+    glCreateRenderbuffers(1, &d.atlas_depth);
+    glNamedRenderbufferStorage(d.atlas_depth, GL_DEPTH_COMPONENT24, config.page_size, config.page_size);
+    glNamedFramebufferTextureLayer(d.atlas_fbo, GL_COLOR_ATTACHMENT0, d.atlas, 0, 0);
+    glNamedFramebufferRenderbuffer(d.atlas_fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, d.atlas_depth);
+  }
   if (glCheckNamedFramebufferStatus(d.atlas_fbo, GL_DRAW_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
     return Error{"", "atlas", "the atlas framebuffer is incomplete"};
   if (GLenum e = glGetError(); e != GL_NO_ERROR)
@@ -415,7 +452,10 @@ Renderer::~Renderer() {
   glDeleteBuffers(1, &d.palette_buffer);
   for (GLuint b : {d.instances.id, d.snapshots.id, d.billboards.id}) glDeleteBuffers(1, &b);
   glDeleteTextures(1, &d.atlas);
-  glDeleteRenderbuffers(1, &d.atlas_depth);
+  if (d.layered)
+    glDeleteTextures(1, &d.atlas_depth);
+  else
+    glDeleteRenderbuffers(1, &d.atlas_depth);
   glDeleteFramebuffers(1, &d.atlas_fbo);
   for (GLuint p : {d.prog_geometry, d.prog_snapshot, d.prog_clear, d.prog_billboard}) glDeleteProgram(p);
 }
@@ -429,8 +469,45 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
   glDepthMask(GL_TRUE);
   glDepthFunc(GL_LESS);
 
-  // 1. Snapshots due, one pass per atlas page (section 4: few passes, shared pages).
-  if (options.take_snapshots) {
+  // 1. Snapshots due (section 4: shared pages, few passes): one pass for all pages when the
+  //    vertex shader can choose the layer, else one pass per page.
+  if (options.take_snapshots && d.layered) {
+    d.snapshot_scratch.clear();
+    d.lod_runs.assign(d.lods.size(), {0, 0});
+    for (std::size_t lod = 0; lod < d.lods.size(); ++lod) {
+      d.lod_runs[lod][1] = static_cast<GLuint>(d.snapshot_scratch.size());
+      for (std::size_t page = 0; page < plan.snapshots.size(); ++page)
+        if (!plan.snapshots[page].empty() &&
+            std::clamp(plan.page_lod[page], 0, static_cast<int>(d.lods.size()) - 1) == static_cast<int>(lod)) {
+          assert(static_cast<int>(page) < d.config.max_pages && "plan from a planner with another ImpostorConfig");
+          d.snapshot_scratch.insert(d.snapshot_scratch.end(), plan.snapshots[page].begin(), plan.snapshots[page].end());
+        }
+      d.lod_runs[lod][0] = static_cast<GLuint>(d.snapshot_scratch.size()) - d.lod_runs[lod][1];
+    }
+    if (!d.snapshot_scratch.empty()) {
+      d.snapshots.upload(d.snapshot_scratch.data(), d.snapshot_scratch.size() * sizeof(SnapshotGpu));
+      GLint prev_fbo = 0, vp[4];
+      glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &prev_fbo);
+      glGetIntegerv(GL_VIEWPORT, vp);
+      glBindFramebuffer(GL_DRAW_FRAMEBUFFER, d.atlas_fbo);
+      glViewport(0, 0, d.config.page_size, d.config.page_size);
+      for (int k = 0; k < 4; ++k) glEnable(GL_CLIP_DISTANCE0 + k);
+      glUseProgram(d.prog_clear);
+      glBindVertexArray(d.lods[0].vao_snapshot);
+      glDepthFunc(GL_ALWAYS);
+      glDrawArraysInstancedBaseInstance(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(d.snapshot_scratch.size()), 0);
+      glDepthFunc(GL_LESS);
+      glUseProgram(d.prog_snapshot);
+      for (std::size_t lod = 0; lod < d.lods.size(); ++lod) {
+        if (d.lod_runs[lod][0] == 0) continue;
+        glBindVertexArray(d.lods[lod].vao_snapshot);
+        d.draw_lod(d.prog_snapshot, static_cast<int>(lod), static_cast<GLsizei>(d.lod_runs[lod][0]), d.lod_runs[lod][1]);
+      }
+      for (int k = 0; k < 4; ++k) glDisable(GL_CLIP_DISTANCE0 + k);
+      glBindFramebuffer(GL_DRAW_FRAMEBUFFER, static_cast<GLuint>(prev_fbo));
+      glViewport(vp[0], vp[1], vp[2], vp[3]);
+    }
+  } else if (options.take_snapshots) {
     d.snapshot_scratch.clear();
     for (const auto& page : plan.snapshots) d.snapshot_scratch.insert(d.snapshot_scratch.end(), page.begin(), page.end());
     if (!d.snapshot_scratch.empty()) {

@@ -88,7 +88,7 @@ struct SnapshotGpu {
   glm::vec4 uo_dist;       // Uo xyz, D
   glm::vec4 vo;            // Vo xyz, 1 for a perspective snapshot (0: orthographic)
   glm::vec4 ta;            // Ta xyz, radius
-  glm::vec4 window;        // window rect in page NDC: centre x, centre y, half extent, unused
+  glm::vec4 window;        // window rect in page NDC: centre x, centre y, half extent; page
   glm::vec4 rect;          // used part of the window, in [-1, 1]^2 of the window: x0, y0, x1, y1
 };
 
