@@ -33,6 +33,8 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["humans"] = r.humans;
   j["frames"] = r.frames;
   j["size"] = std::to_string(r.width) + "x" + std::to_string(r.height);
+  j["msaa"] = s.msaa;
+  j["texels_per_pixel"] = s.texels_per_pixel;
   auto r3 = [](float v) { return std::round(static_cast<double>(v) * 1000.0) / 1000.0; };
   j["posture"] = s.posture_test ? ordered_json(r3(s.posture_threshold)) : ordered_json("off");
   j["view_deg"] = s.view_test ? ordered_json(r3(s.view_deg)) : ordered_json("off");
@@ -108,6 +110,8 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (!a.sweep.empty() && a.mode != "both") return fail("--sweep needs --mode both");
   s.distance_weighting = a.distance_weighting;
   s.orbit_deg_per_s = a.orbit;
+  s.msaa = a.msaa;
+  s.texels_per_pixel = a.texels_per_pixel;
   s.keep_frames = {0, s.frames / 2};
 
   auto ctx = runtime::HeadlessContext::create();
@@ -274,6 +278,10 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--view", a->view, "View-angle threshold in degrees or off")->capture_default_str();
   cmd->add_flag("--distance-weighting", a->distance_weighting, "Weight both thresholds by distance to the viewer");
   cmd->add_option("--orbit", a->orbit, "Camera orbit speed, degrees per second")->capture_default_str();
+  cmd->add_option("--msaa", a->msaa, "Samples per pixel of the scene window, both paths (1: none)")
+      ->capture_default_str()->check(CLI::IsMember({1, 2, 4, 8}));
+  cmd->add_option("--texels-per-pixel", a->texels_per_pixel, "Impostor window texels per screen pixel")
+      ->capture_default_str()->check(CLI::Range(0.25, 4.0));
   cmd->add_option("--sweep", a->sweep, "Sweep the posture threshold (view off) or the view threshold (posture off)");
   cmd->add_flag("--scaling", a->scaling, "Also measure both paths from 20 to 10,000 humans");
   cmd->add_option("--scaling-humans", a->scaling_list, "Crowd sizes of --scaling")->capture_default_str();

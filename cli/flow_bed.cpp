@@ -56,14 +56,15 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   config.cache.view_test = s.view_test;
   config.cache.view_threshold_deg = s.view_deg;
   config.cache.distance_weighting = s.distance_weighting;
+  config.texels_per_pixel = s.texels_per_pixel;
   // Enough atlas for the crowd: windows of 256 px, 16 per 1024 page.
   config.max_pages = std::clamp(s.humans / 8 + 4, 8, 64);
   auto renderer = Renderer::create(model, config);
   if (!renderer) return renderer.error();
   FramePlanner planner(model, config);
-  auto target_g = OffscreenTarget::create(s.width, s.height);
+  auto target_g = OffscreenTarget::create(s.width, s.height, s.msaa);
   if (!target_g) return target_g.error();
-  auto target_i = OffscreenTarget::create(s.width, s.height);
+  auto target_i = OffscreenTarget::create(s.width, s.height, s.msaa);
   if (!target_i) return target_i.error();
 
   // The crowd: concentric circles, a few humans per circle, speeds 0.6 .. 1.8 m/s, alternate
@@ -100,8 +101,8 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   cam.height = s.height;
   cam.fov_y = 0.7854f;
   cam.target = {0, 0.45f * model_height, 0};
-  float cam_dist = outer * 2.3f + model_height;
-  float cam_height = outer * 1.0f + model_height;
+  float cam_dist = outer * 2.1f + model_height;
+  float cam_height = outer * 0.9f + model_height;
   cam.near_plane = 0.05f * unit;
   cam.far_plane = cam_dist * 4;
 
