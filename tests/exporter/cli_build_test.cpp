@@ -1,0 +1,101 @@
+// `bodybuilder build` as a user runs it: batches, failures that do not stop the others, atomic
+// outputs, bad BVH and bad flags.
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Out {
+  int status;
+  std::string text;
+};
+
+Out run(const std::string& args) {
+  std::string cmd = std::string(BB_BIN_DIR) + "/bodybuilder " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  Out o{-1, {}};
+  std::array<char, 4096> buf;
+  size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) o.text.append(buf.data(), n);
+  int st = pclose(p);
+  o.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return o;
+}
+
+fs::path fresh_dir(const char* name) {
+  fs::path d = fs::temp_directory_path() / "bb_cli_build_test" / name;
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+}  // namespace
+
+TEST(CliBuild, BatchReportsEachInputAndFailsIfAnyFailed) {
+  fs::path d = fresh_dir("batch");
+  std::ofstream(d / "broken.json") << "{\"name\": \"broken\", \"primitives\": [";
+  Out o = run("build " + (d / "broken.json").string() + " " + std::string(BB_DATA_DIR) +
+              "/bodies/default.json --variants 1 --seed 7 --lods 2 --no-errors --json -o " + (d / "out").string());
+  EXPECT_EQ(o.status, 1) << o.text;
+  auto json_start = o.text.find("{\"outputs\"");
+  ASSERT_NE(json_start, std::string::npos) << o.text;
+  auto j = nlohmann::json::parse(o.text.substr(json_start, o.text.find('\n', json_start) - json_start));
+  EXPECT_EQ(j["failed"], 2);  // the broken body and its variant
+  ASSERT_EQ(j["outputs"].size(), 4u);
+  int ok = 0;
+  for (const auto& e : j["outputs"]) {
+    if (e["ok"].get<bool>()) {
+      ++ok;
+      EXPECT_TRUE(fs::exists(e["output"].get<std::string>()));
+    } else {
+      EXPECT_NE(e["error"].get<std::string>().find("broken.json"), std::string::npos) << e.dump();
+    }
+  }
+  EXPECT_EQ(ok, 2);
+  EXPECT_TRUE(fs::exists(d / "out" / "default.glb"));
+  EXPECT_TRUE(fs::exists(d / "out" / "default_v7.glb"));
+  for (const auto& f : fs::directory_iterator(d / "out"))
+    EXPECT_EQ(f.path().string().find(".tmp"), std::string::npos) << f.path();  // nothing half-written
+}
+
+TEST(CliBuild, BadBvhAndFlagsAreClearErrors) {
+  fs::path d = fresh_dir("bad");
+  std::ofstream(d / "cut.bvh") << "HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 6 Xposition Yposition";
+  Out o = run("build --lods 2 --no-errors -o " + (d / "out").string() + " --motion " + (d / "cut.bvh").string());
+  EXPECT_NE(o.status, 0);
+  EXPECT_NE(o.text.find("cut.bvh: line 5"), std::string::npos) << o.text;
+  EXPECT_FALSE(fs::exists(d / "out" / "default.glb"));
+  Out lods = run("build --lods 9 -o " + (d / "out").string());
+  EXPECT_NE(lods.status, 0);
+  EXPECT_NE(lods.text.find("--lods"), std::string::npos) << lods.text;
+  Out flag = run("build --no-such-flag");
+  EXPECT_NE(flag.status, 0);
+  Out missing = run("build -o " + (d / "out").string() + " --motion /nonexistent.bvh");
+  EXPECT_NE(missing.status, 0);
+  EXPECT_NE(missing.text.find("/nonexistent.bvh"), std::string::npos) << missing.text;
+}
+
+TEST(CliBuild, MotionCaptureClipKeepsItsDuration) {
+  std::string bvh = std::string(BB_SHARED_DATA_DIR) + "/bvh/131_01.bvh";
+  if (!fs::exists(bvh)) GTEST_SKIP() << "../shared/data/bvh is absent";
+  fs::path d = fresh_dir("mocap");
+  Out o = run("build --lods 2 --no-errors -o " + d.string() + " --motion " + bvh);
+  ASSERT_EQ(o.status, 0) << o.text;
+  Out i = run("inspect " + (d / "default.glb").string() + " --json");
+  ASSERT_EQ(i.status, 0) << i.text;
+  auto j = nlohmann::json::parse(i.text);
+  bool found = false;
+  for (const auto& a : j["animations"])
+    if (a["name"] == "131_01") {
+      found = true;
+      EXPECT_NEAR(a["duration_s"].get<double>(), 993.0 / 120.0, 0.01);  // 994 frames at 120 fps
+    }
+  EXPECT_TRUE(found) << i.text;
+}
