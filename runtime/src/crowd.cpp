@@ -7,6 +7,20 @@
 
 namespace bb::runtime {
 
+glm::vec3 character_ta(const Model& m, const Character& ch, float time) {
+  const auto baked = m.baked_clips();
+  const int clip = m.clips.empty() ? 0 : std::clamp(ch.clip, 0, static_cast<int>(m.clips.size()) - 1);
+  const BakedClip& bc = baked[clip];
+  const float fx = clip_time(ch.phase + ch.speed * time, m.clip_duration(clip), true) * bc.rate;
+  const int f0 = std::min(static_cast<int>(fx), bc.frame_count - 1);
+  const int f1 = std::min(f0 + 1, bc.frame_count - 1);
+  const float blend = f1 > f0 ? fx - static_cast<float>(f0) : 0.0f;
+  const glm::vec2 travel = bc.root_offset[f0] + (bc.root_offset[f1] - bc.root_offset[f0]) * blend;
+  const glm::vec3 l = (m.ta + glm::vec3(travel.x, 0.0f, travel.y)) * ch.scale;
+  const float cy = std::cos(ch.yaw), sy = std::sin(ch.yaw);
+  return ch.position + glm::vec3(cy * l.x + sy * l.z, l.y, -sy * l.x + cy * l.z);
+}
+
 FramePlanner::FramePlanner(const Model& model, const ImpostorConfig& config)
     : model_(&model), config_(config), atlas_(config.page_size, config.max_pages, config.windows) {
   plan_.geometry.resize(model.lods.size());
@@ -68,14 +82,6 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
     const Character& ch = crowd[i];
     const float radius = m.radius * ch.scale;
     const float cy = std::cos(ch.yaw), sy = std::sin(ch.yaw);
-    const glm::vec3 ta_local = m.ta * ch.scale;
-    const glm::vec3 ta = ch.position + glm::vec3(cy * ta_local.x + sy * ta_local.z, ta_local.y, -sy * ta_local.x + cy * ta_local.z);
-    bool outside = false;
-    for (const auto& p : planes) outside |= glm::dot(glm::vec3(p), ta) + p.w < -radius;
-    if (outside) {
-      ++st.culled;
-      continue;
-    }
     // Animation state: baked frames around the character's clip time.
     const int clip = m.clips.empty() ? 0 : std::clamp(ch.clip, 0, static_cast<int>(m.clips.size()) - 1);
     const BakedClip& bc = baked[clip];
@@ -84,6 +90,15 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
     const int f0 = std::min(static_cast<int>(fx), bc.frame_count - 1);
     const int f1 = std::min(f0 + 1, bc.frame_count - 1);
     const float blend = f1 > f0 ? fx - static_cast<float>(f0) : 0.0f;
+    const glm::vec2 travel = bc.root_offset[f0] + (bc.root_offset[f1] - bc.root_offset[f0]) * blend;
+    const glm::vec3 ta_local = (m.ta + glm::vec3(travel.x, 0.0f, travel.y)) * ch.scale;
+    const glm::vec3 ta = ch.position + glm::vec3(cy * ta_local.x + sy * ta_local.z, ta_local.y, -sy * ta_local.x + cy * ta_local.z);
+    bool outside = false;
+    for (const auto& p : planes) outside |= glm::dot(glm::vec3(p), ta) + p.w < -radius;
+    if (outside) {
+      ++st.culled;
+      continue;
+    }
     InstanceGpu inst{glm::vec4(ch.position, ch.yaw),
                      glm::vec4(ch.scale, static_cast<float>(bc.first_row + f0), static_cast<float>(bc.first_row + f1), blend)};
     const float depth = glm::dot(ta - camera.eye, fwd);

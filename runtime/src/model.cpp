@@ -60,6 +60,17 @@ void Model::bake(float rate) {
   const std::size_t nn = nodes.size(), np = palette.size();
   std::vector<Transform> locals(nn);
   std::vector<glm::mat4> world(nn), pal(np);
+  // The skeleton's root: the palette node with no palette ancestor (first one found).
+  std::vector<bool> in_palette(nn, false);
+  for (const auto& e : palette) in_palette[e.node] = true;
+  int root = palette.empty() ? -1 : palette.front().node;
+  while (root >= 0 && nodes[root].parent >= 0 && in_palette[nodes[root].parent]) root = nodes[root].parent;
+  glm::vec2 rest_root(0.0f);
+  if (root >= 0) {
+    sample_clip(*this, -1, 0.0f, locals);
+    world_matrices(*this, locals, world);
+    rest_root = glm::vec2(world[root][3].x, world[root][3].z);
+  }
   const int clip_count = std::max<int>(1, static_cast<int>(clips.size()));
   for (int ci = 0; ci < clip_count; ++ci) {
     const int clip = clips.empty() ? -1 : ci;
@@ -72,6 +83,7 @@ void Model::bake(float rate) {
       sample_clip(*this, clip, std::min(f / rate, dur), locals);
       world_matrices(*this, locals, world);
       palette_matrices(*this, world, pal);
+      bc.root_offset.push_back(root >= 0 ? glm::vec2(world[root][3].x, world[root][3].z) - rest_root : glm::vec2(0.0f));
       for (const glm::mat4& m : pal)
         for (int r = 0; r < 3; ++r) baked_palette_.emplace_back(m[0][r], m[1][r], m[2][r], m[3][r]);
     }
@@ -90,6 +102,7 @@ void Model::bake(float rate) {
     return p;
   };
   glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+  glm::vec3 rel_lo = lo, rel_hi = hi;  // relative to the root's horizontal travel
   for (BakedClip& bc : baked_) {
     // Per-frame bounds (for tight impostor quads): measured at up to 120 frames per clip, each
     // frame takes the union of the measured frames around it.
@@ -106,6 +119,9 @@ void Model::bake(float rate) {
       measured.push_back({flo, fhi});
       lo = glm::min(lo, flo);
       hi = glm::max(hi, fhi);
+      const glm::vec3 ro(bc.root_offset[f].x, 0.0f, bc.root_offset[f].y);
+      rel_lo = glm::min(rel_lo, flo - ro);
+      rel_hi = glm::max(rel_hi, fhi - ro);
     }
     bc.bounds.resize(bc.frame_count);
     for (int f = 0; f < bc.frame_count; ++f) {
@@ -117,12 +133,13 @@ void Model::bake(float rate) {
   if (lod.vertices.empty()) lo = hi = glm::vec3(0.0f);
   bounds_min = lo;
   bounds_max = hi;
-  ta = 0.5f * (lo + hi);
+  if (lod.vertices.empty()) rel_lo = rel_hi = glm::vec3(0.0f);
+  ta = 0.5f * (rel_lo + rel_hi);
   float r2 = 0.0f;
   for (const BakedClip& bc : baked_)
     for (int f = 0; f < bc.frame_count; f += sample_stride(bc.frame_count, 120))
       for (const Vertex& v : lod.vertices) {
-        glm::vec3 d = skin(v, bc.first_row + f) - ta;
+        glm::vec3 d = skin(v, bc.first_row + f) - ta - glm::vec3(bc.root_offset[f].x, 0.0f, bc.root_offset[f].y);
         r2 = std::max(r2, glm::dot(d, d));
       }
   // Frames between the sampled ones can reach a little further.
@@ -152,15 +169,15 @@ void Model::bake_posture() {
     for (std::size_t i = 0; i < nn; ++i) {
       if (!in_skeleton[i] || has_child[i]) continue;
       ++leaves;
-      points.push_back(PosturePoint{static_cast<int>(i), glm::vec3(0.0f)});
+      // A point beyond the leaf along its last bone (so a 2-joint chain bends measurably), or
+      // the leaf itself.
+      PosturePoint pt{static_cast<int>(i), glm::vec3(0.0f)};
       int p = nodes[i].parent;
       if (p >= 0) {
         glm::vec3 a(world[p][3]), b(world[i][3]);
-        if (glm::length(b - a) > 1e-6f) {
-          glm::vec3 tip = b + 0.5f * (b - a);
-          points.push_back(PosturePoint{static_cast<int>(i), glm::vec3(glm::inverse(world[i]) * glm::vec4(tip, 1.0f))});
-        }
+        if (glm::length(b - a) > 1e-6f) pt.offset = glm::vec3(glm::inverse(world[i]) * glm::vec4(b + 0.5f * (b - a), 1.0f));
       }
+      points.push_back(pt);
     }
     if (leaves < 3)
       for (std::size_t i = 0; i < nn; ++i)
@@ -193,19 +210,19 @@ void Model::bake_posture() {
       if (varies(x) != varies(y)) return varies(x);
       return x.rest > y.rest;
     });
-    std::vector<int> uses(n, 0);
+    std::vector<int> uses(nn, 0);  // per node: spread the pairs over the body
     for (int pass = 0; pass < 2 && posture_pairs_.size() < kPosturePairs; ++pass)
       for (const Cand& c : cands) {
         if (posture_pairs_.size() >= kPosturePairs) break;
-        if (pass == 0 && (uses[c.a] >= 2 || uses[c.b] >= 2)) continue;
+        if (pass == 0 && (uses[points[c.a].node] >= 2 || uses[points[c.b].node] >= 2)) continue;
         bool dup = false;
         for (const auto& pp : posture_pairs_)
           dup |= pp.a.node == points[c.a].node && pp.a.offset == points[c.a].offset && pp.b.node == points[c.b].node &&
                  pp.b.offset == points[c.b].offset;
         if (dup) continue;
         posture_pairs_.push_back(PosturePair{points[c.a], points[c.b]});
-        ++uses[c.a];
-        ++uses[c.b];
+        ++uses[points[c.a].node];
+        ++uses[points[c.b].node];
       }
     if (posture_pairs_.empty()) posture_pairs_.push_back(PosturePair{});
     while (posture_pairs_.size() < kPosturePairs) posture_pairs_.push_back(posture_pairs_.back());

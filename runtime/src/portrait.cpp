@@ -14,8 +14,9 @@ SceneCamera portrait_camera(const Model& model, const PortraitOptions& o) {
   cam.height = o.height;
   float dist = o.distance > 0.0f ? o.distance : model.radius / std::tan(0.5f * cam.fov_y) / 0.9f;
   const float az = glm::radians(o.azimuth_deg), el = glm::radians(o.elevation_deg);
-  cam.target = model.ta;
-  cam.eye = model.ta + dist * glm::vec3(std::sin(az) * std::cos(el), std::sin(el), std::cos(az) * std::cos(el));
+  const glm::vec3 ta = character_ta(model, Character{glm::vec3(0.0f), 0.0f, 1.0f, o.clip, 0.0f, 1.0f}, o.time);
+  cam.target = ta;
+  cam.eye = ta + dist * glm::vec3(std::sin(az) * std::cos(el), std::sin(el), std::cos(az) * std::cos(el));
   cam.near_plane = std::max(0.01f, 0.05f * dist);
   cam.far_plane = dist + 10.0f * model.radius + 10.0f;
   return cam;
@@ -26,7 +27,7 @@ Result<Image> render_portrait(const Model& model, const PortraitOptions& o) {
   ImpostorConfig cfg;
   // One texel per pixel: the window is the character's on-screen size (even, so that with Ta at
   // the centre of an even-sized image the texels fall on the pixels).
-  const float depth = glm::distance(cam.eye, model.ta), r = model.radius;
+  const float depth = glm::distance(cam.eye, cam.target), r = model.radius;
   const float half = depth > 1.05f * r ? r * depth / std::sqrt(depth * depth - r * r) : r;
   int window = static_cast<int>(std::ceil(2.0f * half * cam.pixels_per_metre(depth) - 1e-3f));
   window = std::clamp(window + (window & 1), 8, 4096);

@@ -43,6 +43,10 @@ class Crowd {
   std::vector<Character> characters_;
 };
 
+// World position of the character's Ta at scene time `time` (section 4.2's fixed point, carried
+// by the clip's root travel): where its impostor is centred, a good camera target.
+glm::vec3 character_ta(const Model& model, const Character& character, float time);
+
 enum class RenderMode {
   kGeometry,  // every visible character as skinned geometry (the baseline)
   kImpostor,  // every visible character as an impostor

@@ -114,6 +114,9 @@ struct BakedClip {
   std::vector<std::array<float, kPosturePairs>> posture;
   // Bounding box of each frame's pose (model space, metres, with a 2 % of radius margin).
   std::vector<std::array<glm::vec3, 2>> bounds;
+  // Horizontal (x, z) travel of the skeleton's root from its rest place, per frame (metres):
+  // clips with root motion carry Ta (and the impostor) along.
+  std::vector<glm::vec2> root_offset;
 };
 
 class Model {
@@ -126,11 +129,13 @@ class Model {
   std::vector<Texture> textures;
   std::vector<Clip> clips;           // may be empty (then the rest pose is a 0 s clip)
 
-  // Section 4.2: Ta, the centre of the bounds of every pose of every clip (model space), and the
-  // radius around Ta that contains every vertex of every pose: the snapshot frustum's half size.
+  // Section 4.2: Ta, the centre of the bounds of every pose of every clip (model space, measured
+  // relative to the root's horizontal travel, see BakedClip::root_offset, so a clip that walks
+  // away does not inflate it), and the radius around Ta (+ that travel) containing every vertex of
+  // every pose: the snapshot frustum's half size.
   glm::vec3 ta{0.0f};
   float radius = 1.0f;
-  glm::vec3 bounds_min{0.0f}, bounds_max{0.0f};  // of all poses, model space
+  glm::vec3 bounds_min{0.0f}, bounds_max{0.0f};  // of all poses, model space (travel included)
 
   // Index of the clip named `name`, or -1.
   int find_clip(std::string_view clip_name) const;
