@@ -1,0 +1,99 @@
+// `bodybuilder flow` and `bodybuilder demo` as a user runs them (headless EGL; llvmpipe here).
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Out {
+  int status;
+  std::string text;
+};
+
+Out run(const std::string& args) {
+  std::string cmd = std::string(BB_BIN_DIR) + "/bodybuilder " + args + " 2>&1";
+  FILE* p = popen(cmd.c_str(), "r");
+  Out o{-1, {}};
+  std::array<char, 4096> buf;
+  size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) o.text.append(buf.data(), n);
+  int st = pclose(p);
+  o.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return o;
+}
+
+std::string last_json_line(const std::string& text) {
+  auto p = text.rfind("\n{");
+  return p == std::string::npos ? text : text.substr(p + 1);
+}
+
+}  // namespace
+
+TEST(FlowCli, BothPathsOnAModelThatIsNotOurs) {
+  std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
+  fs::path d = fs::temp_directory_path() / "bb_flow_cli_test";
+  fs::remove_all(d);
+  Out o = run("flow --model " + model + " --frames 8 --size 480x384 --json -o " + d.string());
+  if (o.text.find("EGL") != std::string::npos && o.status != 0) GTEST_SKIP() << "no headless OpenGL: " << o.text;
+  ASSERT_EQ(o.status, 0) << o.text;
+  auto j = nlohmann::json::parse(last_json_line(o.text));
+  EXPECT_EQ(j["humans"], 20);
+  EXPECT_EQ(j["frames"], 8);
+  EXPECT_GT(j["geometry_ms"].get<double>(), 0);
+  EXPECT_GT(j["impostor_ms"].get<double>(), 0);
+  EXPECT_NEAR(j["ratio"].get<double>(), j["impostor_ms"].get<double>() / j["geometry_ms"].get<double>(), 1e-9);
+  EXPECT_GE(j["refresh_fraction"].get<double>(), 0);
+  EXPECT_LE(j["refresh_fraction"].get<double>(), 1);
+  EXPECT_GT(j["psnr_db"].get<double>(), 5);  // the impostors show the same crowd
+  EXPECT_GT(j["ssim"].get<double>(), 0.3);
+  EXPECT_TRUE(fs::exists(d / "flow.json"));
+  EXPECT_TRUE(fs::exists(d / "frame_0_impostors_vs_geometry.png"));
+}
+
+TEST(FlowCli, WorstCaseRefreshesEveryImpostorEveryFrame) {
+  std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
+  fs::path d = fs::temp_directory_path() / "bb_flow_cli_test0";
+  Out o = run("flow --model " + model + " --frames 4 --size 320x256 --posture 0 --view 0 --json -o " + d.string());
+  if (o.text.find("EGL") != std::string::npos && o.status != 0) GTEST_SKIP() << "no headless OpenGL: " << o.text;
+  ASSERT_EQ(o.status, 0) << o.text;
+  auto j = nlohmann::json::parse(last_json_line(o.text));
+  EXPECT_DOUBLE_EQ(j["refresh_fraction"].get<double>(), 1.0);
+  // With both tests off nothing is refreshed after the first snapshots.
+  Out off = run("flow --model " + model + " --frames 4 --size 320x256 --posture off --view off --json -o " + d.string());
+  ASSERT_EQ(off.status, 0) << off.text;
+  EXPECT_DOUBLE_EQ(nlohmann::json::parse(last_json_line(off.text))["refresh_fraction"].get<double>(), 0.0);
+}
+
+TEST(FlowCli, BadFlagsAreErrors) {
+  for (const char* args : {"flow --size 12", "flow --mode fast", "flow --posture -1", "flow --view abc",
+                           "flow --sweep size", "flow --model /nonexistent.glb --frames 1"}) {
+    Out o = run(args);
+    EXPECT_NE(o.status, 0) << args;
+    EXPECT_NE(o.text.find("flow"), std::string::npos) << args << ": " << o.text;
+  }
+}
+
+TEST(DemoCli, WritesTheLodSetFramesChartsAndReport) {
+  fs::path d = fs::temp_directory_path() / "bb_demo_cli_test";
+  fs::remove_all(d);
+  Out o = run("demo --frames 4 -o " + d.string());
+  if (o.text.find("EGL") != std::string::npos && o.status != 0) GTEST_SKIP() << "no headless OpenGL: " << o.text;
+  ASSERT_EQ(o.status, 0) << o.text;
+  for (const char* f : {"default.glb", "default_body.png", "report.md", "demo.json", "sweep_posture.png",
+                        "sweep_view.png", "scaling.png", "frame_0_impostors_vs_geometry.png"})
+    EXPECT_TRUE(fs::exists(d / f)) << f;
+  std::ifstream in(d / "demo.json");
+  auto j = nlohmann::json::parse(in);
+  EXPECT_GT(j["main"]["geometry_ms"].get<double>(), 0);
+  EXPECT_GE(j["posture_sweep"].size(), 5u);
+  EXPECT_GE(j["view_sweep"].size(), 5u);
+  EXPECT_NE(o.text.find("speed-up"), std::string::npos);
+}
