@@ -210,19 +210,39 @@ void Model::bake_posture() {
       if (varies(x) != varies(y)) return varies(x);
       return x.rest > y.rest;
     });
-    std::vector<int> uses(nn, 0);  // per node: spread the pairs over the body
-    for (int pass = 0; pass < 2 && posture_pairs_.size() < kPosturePairs; ++pass)
+    // Points closer than 15 % of the radius in the rest pose are one limb end (the fingertips of a
+    // hand). No two pairs join the same two limb ends, and in the first pass no limb end serves
+    // more than twice: feet-head, hand-hand, hand-foot for a human.
+    sample_clip(*this, -1, 0.0f, locals);
+    world_matrices(*this, locals, world);
+    std::vector<int> end_of(n);
+    for (std::size_t a = 0; a < n; ++a) {
+      end_of[a] = static_cast<int>(a);
+      for (std::size_t b = 0; b < a; ++b)
+        if (glm::distance(point_position(points[a], world), point_position(points[b], world)) < 0.15f * radius) {
+          end_of[a] = end_of[b];
+          break;
+        }
+    }
+    std::vector<int> uses(n, 0);
+    std::vector<std::pair<int, int>> joined;
+    for (int pass = 0; pass < 3 && posture_pairs_.size() < kPosturePairs; ++pass)
       for (const Cand& c : cands) {
         if (posture_pairs_.size() >= kPosturePairs) break;
-        if (pass == 0 && (uses[points[c.a].node] >= 2 || uses[points[c.b].node] >= 2)) continue;
+        const int la = end_of[c.a], lb = end_of[c.b];
+        if (pass == 0 && (uses[la] >= 2 || uses[lb] >= 2)) continue;
+        const auto key = std::minmax(la, lb);
+        if (pass < 2 && std::find(joined.begin(), joined.end(), std::pair<int, int>(key.first, key.second)) != joined.end())
+          continue;
         bool dup = false;
         for (const auto& pp : posture_pairs_)
           dup |= pp.a.node == points[c.a].node && pp.a.offset == points[c.a].offset && pp.b.node == points[c.b].node &&
                  pp.b.offset == points[c.b].offset;
         if (dup) continue;
         posture_pairs_.push_back(PosturePair{points[c.a], points[c.b]});
-        ++uses[points[c.a].node];
-        ++uses[points[c.b].node];
+        joined.emplace_back(key.first, key.second);
+        ++uses[la];
+        ++uses[lb];
       }
     if (posture_pairs_.empty()) posture_pairs_.push_back(PosturePair{});
     while (posture_pairs_.size() < kPosturePairs) posture_pairs_.push_back(posture_pairs_.back());
