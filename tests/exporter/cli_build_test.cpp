@@ -8,26 +8,14 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "run_cli.h"
+
 namespace fs = std::filesystem;
 
 namespace {
 
-struct Out {
-  int status;
-  std::string text;
-};
-
-Out run(const std::string& args) {
-  std::string cmd = std::string(BB_BIN_DIR) + "/bodybuilder " + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  Out o{-1, {}};
-  std::array<char, 4096> buf;
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) o.text.append(buf.data(), n);
-  int st = pclose(p);
-  o.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return o;
-}
+using Out = bb::test::CliRun;
+Out run(const std::string& args) { return bb::test::run_cli(args); }
 
 fs::path fresh_dir(const char* name) {
   fs::path d = fs::temp_directory_path() / "bb_cli_build_test" / name;

@@ -9,23 +9,13 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "run_cli.h"
+
 namespace {
 
-struct CmdResult {
-  int status;
-  std::string out;
-};
-
+using CmdResult = bb::test::CliRun;
 CmdResult run(const std::string& args) {
-  std::string cmd = std::string(BB_BIN_DIR) + "/bodybuilder " + args + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  CmdResult r{-1, {}};
-  if (!p) return r;
-  std::array<char, 4096> buf;
-  size_t n;
-  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  int st = pclose(p);
-  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  auto r = bb::test::run_cli(args);
   return r;
 }
 
@@ -41,8 +31,8 @@ std::string temp_file(const std::string& name, const std::string& text) {
 
 TEST(CliInspectBody, JsonReportOfTheDefaultBody) {
   CmdResult r = run("inspect " + std::string(BB_DATA_DIR) + "/bodies/default.json --json");
-  ASSERT_EQ(r.status, 0) << r.out;
-  auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(r.status, 0) << r.text;
+  auto j = nlohmann::json::parse(r.text);
   EXPECT_EQ(j["kind"], "body");
   EXPECT_EQ(j["name"], "default");
   EXPECT_EQ(j["dofs"], 74);
@@ -59,7 +49,7 @@ TEST(CliInspectBody, PreviewIsAPng) {
   auto out = (std::filesystem::temp_directory_path() / "bb_cli_body_test" / "preview.png").string();
   std::filesystem::remove(out);
   CmdResult r = run("inspect default --preview " + out);
-  ASSERT_EQ(r.status, 0) << r.out;
+  ASSERT_EQ(r.status, 0) << r.text;
   std::ifstream in(out, std::ios::binary);
   char sig[8] = {};
   in.read(sig, 8);
@@ -90,15 +80,15 @@ TEST(CliInspectBody, BadInputGivesFilePlaceReasonAndNonZeroExit) {
   for (const auto& c : cases) {
     CmdResult r = run("inspect " + c.file);
     EXPECT_NE(r.status, 0) << c.file;
-    EXPECT_NE(r.out.find(c.expect), std::string::npos) << "expected '" << c.expect << "' in: " << r.out;
+    EXPECT_NE(r.text.find(c.expect), std::string::npos) << "expected '" << c.expect << "' in: " << r.text;
   }
 }
 
 TEST(CliInspectBody, WrongFlagIsAnError) {
   CmdResult r = run("inspect --no-such-flag");
   EXPECT_NE(r.status, 0);
-  EXPECT_NE(r.out.find("--no-such-flag"), std::string::npos) << r.out;
+  EXPECT_NE(r.text.find("--no-such-flag"), std::string::npos) << r.text;
   CmdResult v = run("--version");
   EXPECT_EQ(v.status, 0);
-  EXPECT_NE(v.out.find("bodybuilder"), std::string::npos);
+  EXPECT_NE(v.text.find("bodybuilder"), std::string::npos);
 }

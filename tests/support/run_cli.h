@@ -1,0 +1,30 @@
+// Tests: runs the bodybuilder executable as a user would, capturing stdout and stderr together.
+#pragma once
+
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <string>
+
+namespace bb::test {
+
+struct CliRun {
+  int status = -1;   // exit status, -1 when it did not exit normally
+  std::string text;  // stdout and stderr
+};
+
+inline CliRun run_cli(const std::string& args) {
+  std::string cmd = std::string(BB_BIN_DIR) + "/bodybuilder " + args + " 2>&1";
+  CliRun r;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return r;
+  std::array<char, 4096> buf;
+  size_t n;
+  while ((n = fread(buf.data(), 1, buf.size(), p)) > 0) r.text.append(buf.data(), n);
+  int st = pclose(p);
+  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  return r;
+}
+
+}  // namespace bb::test
