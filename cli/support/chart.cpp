@@ -94,7 +94,7 @@ std::vector<double> log_ticks(double lo, double hi) {
 
 std::vector<unsigned char> render_chart(const Chart& c, int width, int height) {
   Canvas cv(width, height);
-  const int left = 90, right = 20, top = 50, bottom = 70;
+  const int left = 90, right = 20, top = 70, bottom = 70;
   double x_lo = 1e300, x_hi = -1e300, y_lo = 1e300, y_hi = -1e300;
   for (const auto& s : c.series)
     for (size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
