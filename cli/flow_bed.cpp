@@ -129,14 +129,20 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
     bool keep = measured && std::find(s.keep_frames.begin(), s.keep_frames.end(), mf) != s.keep_frames.end();
     FlowFrameImages imgs;
     imgs.frame = mf;
-    if (s.geometry) {
-      (*target_g)->bind(true);
+    // One path: plan and draw into its target, timed until the GPU has finished.
+    auto draw = [&](OffscreenTarget& target, RenderMode mode, double* ms) -> const FramePlan& {
+      target.bind(true);
       gpu_finish();
       auto t0 = Clock::now();
-      const FramePlan& plan = planner.plan(crowd, cam, t, RenderMode::kGeometry);
+      const FramePlan& plan = planner.plan(crowd, cam, t, mode);
       (*renderer)->draw(plan);
       gpu_finish();
-      double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+      *ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+      return plan;
+    };
+    double ms = 0;
+    if (s.geometry) {
+      const FramePlan& plan = draw(**target_g, RenderMode::kGeometry, &ms);
       if (measured) {
         g_ms += ms;
         tri_g += plan.stats.geometry_triangles;
@@ -144,13 +150,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
       if (compare || keep) imgs.geometry = (*target_g)->read_rgba();
     }
     if (s.impostor) {
-      (*target_i)->bind(true);
-      gpu_finish();
-      auto t0 = Clock::now();
-      const FramePlan& plan = planner.plan(crowd, cam, t, RenderMode::kImpostor);
-      (*renderer)->draw(plan);
-      gpu_finish();
-      double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+      const FramePlan& plan = draw(**target_i, RenderMode::kImpostor, &ms);
       if (measured) {
         i_ms += ms;
         refresh += plan.stats.refresh_fraction;
