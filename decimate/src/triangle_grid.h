@@ -31,24 +31,43 @@ inline glm::vec3 closest_on_triangle(const glm::vec3& p, const glm::vec3& a, con
   return a + ab * (vb * denom) + ac * (vc * denom);
 }
 
-// Triangles of one mesh in a uniform grid; nearest-distance queries search rings of cells.
+// The triangles `idx` (of vertices `p`) in a uniform grid over their own bounds, cells about
+// twice the mean edge length, stored flat (offsets + triangle lists). Queries search growing
+// shells of cells and stop once no unseen triangle can be nearer than the best found.
 class TriangleGrid {
  public:
   TriangleGrid(const std::vector<glm::vec3>& p, const std::vector<uint32_t>& idx) : p_(p), idx_(idx) {
-    for (const auto& v : p) { lo_ = glm::min(lo_, v); hi_ = glm::max(hi_, v); }
-    size_t tris = idx.size() / 3;
-    glm::vec3 size = glm::max(hi_ - lo_, glm::vec3(1e-6f));
-    float vol = size.x * size.y * size.z;
-    cell_ = std::max(1e-4f, std::cbrt(vol / std::max<size_t>(1, tris) * 2.0f));
-    dims_ = glm::clamp(glm::ivec3(glm::ceil(size / cell_)), glm::ivec3(1), glm::ivec3(256));
-    cells_.resize(static_cast<size_t>(dims_.x) * dims_.y * dims_.z);
+    const size_t tris = idx.size() / 3;
+    double edge_sum = 0;
     for (size_t t = 0; t < tris; ++t) {
-      glm::vec3 a = p[idx[3 * t]], b = p[idx[3 * t + 1]], c = p[idx[3 * t + 2]];
+      const glm::vec3 &a = p[idx[3 * t]], &b = p[idx[3 * t + 1]], &c = p[idx[3 * t + 2]];
+      lo_ = glm::min(lo_, glm::min(a, glm::min(b, c)));
+      hi_ = glm::max(hi_, glm::max(a, glm::max(b, c)));
+      edge_sum += glm::length(b - a) + glm::length(c - b) + glm::length(a - c);
+    }
+    if (tris == 0) lo_ = hi_ = glm::vec3(0);
+    glm::vec3 size = glm::max(hi_ - lo_, glm::vec3(1e-6f));
+    cell_ = std::max(1e-5f, static_cast<float>(2.0 * edge_sum / std::max<size_t>(1, 3 * tris)));
+    // At most ~4 M cells: grow the cell until the grid fits.
+    for (;;) {
+      dims_ = glm::max(glm::ivec3(glm::ceil(size / cell_)), glm::ivec3(1));
+      if (static_cast<double>(dims_.x) * dims_.y * dims_.z <= 4.0e6) break;
+      cell_ *= 1.25f;
+    }
+    const size_t ncells = static_cast<size_t>(dims_.x) * dims_.y * dims_.z;
+    start_.assign(ncells + 1, 0);
+    auto each_cell = [&](size_t t, auto&& f) {
+      const glm::vec3 &a = p[idx[3 * t]], &b = p[idx[3 * t + 1]], &c = p[idx[3 * t + 2]];
       glm::ivec3 l = cell_of(glm::min(a, glm::min(b, c))), h = cell_of(glm::max(a, glm::max(b, c)));
       for (int z = l.z; z <= h.z; ++z)
         for (int y = l.y; y <= h.y; ++y)
-          for (int x = l.x; x <= h.x; ++x) cells_[index(x, y, z)].push_back(static_cast<uint32_t>(t));
-    }
+          for (int x = l.x; x <= h.x; ++x) f(index(x, y, z));
+    };
+    for (size_t t = 0; t < tris; ++t) each_cell(t, [&](size_t i) { ++start_[i + 1]; });
+    for (size_t i = 0; i < ncells; ++i) start_[i + 1] += start_[i];
+    items_.resize(start_[ncells]);
+    std::vector<uint32_t> fill(start_.begin(), start_.end() - 1);
+    for (size_t t = 0; t < tris; ++t) each_cell(t, [&](size_t i) { items_[fill[i]++] = static_cast<uint32_t>(t); });
   }
 
   float distance(const glm::vec3& q) const {
@@ -58,19 +77,34 @@ class TriangleGrid {
 
   // Distance from q to the nearest triangle; its closest point and triangle index.
   float closest(const glm::vec3& q, glm::vec3* point, uint32_t* triangle) const {
-    glm::ivec3 c = cell_of(q);
     float best2 = 1e30f;
+    if (items_.empty()) return std::sqrt(best2);
+    glm::ivec3 c = cell_of(q);
     int max_ring = std::max(dims_.x, std::max(dims_.y, dims_.z));
     for (int r = 0; r <= max_ring; ++r) {
-      // Every triangle not yet seen lies at least (r - 1) cells away (plus the query's offset).
-      float bound = std::max(0, r - 1) * cell_;
-      if (best2 < bound * bound) break;
-      for (int z = c.z - r; z <= c.z + r; ++z)
-        for (int y = c.y - r; y <= c.y + r; ++y)
-          for (int x = c.x - r; x <= c.x + r; ++x) {
-            if (std::max({std::abs(x - c.x), std::abs(y - c.y), std::abs(z - c.z)}) != r) continue;
-            if (x < 0 || y < 0 || z < 0 || x >= dims_.x || y >= dims_.y || z >= dims_.z) continue;
-            for (uint32_t t : cells_[index(x, y, z)]) {
+      if (r > 0) {
+        // Cells within r - 1 of c are searched; an unseen triangle touches none of them, so it
+        // lies outside that block: at least as far as the block's nearest face (a face on the
+        // grid's border has nothing beyond it).
+        float bound = 1e30f;
+        for (int k = 0; k < 3; ++k) {
+          if (c[k] - (r - 1) > 0) bound = std::min(bound, q[k] - (lo_[k] + (c[k] - (r - 1)) * cell_));
+          if (c[k] + r < dims_[k]) bound = std::min(bound, lo_[k] + (c[k] + r) * cell_ - q[k]);
+        }
+        if (bound >= 1e30f) break;  // the block covers the whole grid
+        if (bound > 0 && best2 <= bound * bound) break;
+      }
+      for (int z = std::max(0, c.z - r); z <= std::min(dims_.z - 1, c.z + r); ++z)
+        for (int y = std::max(0, c.y - r); y <= std::min(dims_.y - 1, c.y + r); ++y) {
+          bool shell_zy = std::abs(z - c.z) == r || std::abs(y - c.y) == r;
+          for (int x = std::max(0, c.x - r); x <= std::min(dims_.x - 1, c.x + r); ++x) {
+            if (!shell_zy && std::abs(x - c.x) != r) {
+              x = c.x + r - 1;  // jump to the shell's far face
+              continue;
+            }
+            size_t cell = index(x, y, z);
+            for (uint32_t i = start_[cell]; i < start_[cell + 1]; ++i) {
+              uint32_t t = items_[i];
               glm::vec3 cp = closest_on_triangle(q, p_[idx_[3 * t]], p_[idx_[3 * t + 1]], p_[idx_[3 * t + 2]]);
               glm::vec3 d = cp - q;
               float d2 = glm::dot(d, d);
@@ -81,6 +115,7 @@ class TriangleGrid {
               }
             }
           }
+        }
     }
     return std::sqrt(best2);
   }
@@ -96,7 +131,8 @@ class TriangleGrid {
   glm::vec3 lo_{1e30f}, hi_{-1e30f};
   float cell_ = 1;
   glm::ivec3 dims_{1};
-  std::vector<std::vector<uint32_t>> cells_;
+  std::vector<uint32_t> start_;  // cell i holds items_[start_[i] .. start_[i + 1])
+  std::vector<uint32_t> items_;
 };
 
 }  // namespace bb::decimate::detail
