@@ -171,7 +171,7 @@ int run(BuildArgs a) {
       o["seconds"] = job.seconds;
       o["error"] = job.ok ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(job.error);
       if (job.ok) {
-        o["stages_s"] = {{"mesh", job.times.mesh}, {"decimate", job.times.decimate}, {"proxies", job.times.proxies},
+        o["stages_s"] = {{"mesh", job.times.mesh}, {"decimate", job.times.decimate}, {"checks", job.times.checks}, {"proxies", job.times.proxies},
                          {"clips", job.times.clips}, {"encode", job.times.encode}};
         nlohmann::ordered_json lods = nlohmann::ordered_json::array();
         for (const auto& r : job.lods)

@@ -111,6 +111,8 @@ Result<mesher::SkinnedMesh> decimate(const mesher::SkinnedMesh& in, const Option
     out.positions.push_back(in.positions[s]);  // halfedge collapses never move survivors
     if (in.normals.size() == nv) out.normals.push_back(in.normals[s]);
     if (in.uvs.size() == nv) out.uvs.push_back(in.uvs[s]);
+    if (in.part.size() == nv) out.part.push_back(in.part[s]);
+    if (in.seam.size() == nv) out.seam.push_back(in.seam[s]);
     if (skinned) {
       out.joints.push_back(in.joints[s]);
       out.weights.push_back(in.weights[s]);

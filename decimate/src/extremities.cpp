@@ -2,7 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <atomic>
+#include <cstring>
 #include <memory>
+#include <thread>
+#include <unordered_map>
 
 #include "triangle_grid.h"
 
@@ -19,40 +23,114 @@ uint8_t triangle_part(const mesher::SkinnedMesh& m, size_t t) {
 
 }  // namespace
 
-Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh, size_t budget, Report* report) {
+Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh, size_t budget, Report* report,
+                                                 unsigned threads) {
   const size_t nv = mesh.positions.size();
   if (mesh.part.size() != nv || mesh.seam.size() != nv)
     return Error{"", "", "the mesh has no part/seam tags: cannot tell extremities from the body"};
+  const size_t total = mesh.indices.size() / 3;
+  // Extremity triangles per part; vertices shared with any other triangle (seams, zippers).
+  std::vector<std::vector<size_t>> tris(8);
+  std::vector<char> shared(nv, 0);
   size_t extremity = 0;
-  for (size_t t = 0; t < mesh.indices.size(); t += 3) extremity += triangle_part(mesh, t) != 0;
-  size_t total = mesh.indices.size() / 3;
+  for (size_t t = 0; t < mesh.indices.size(); t += 3) {
+    uint8_t p = triangle_part(mesh, t);
+    if (p != 0 && p < 8) {
+      tris[p].push_back(t);
+      ++extremity;
+    } else {
+      for (int k = 0; k < 3; ++k) shared[mesh.indices[t + k]] = 1;
+    }
+  }
   if (extremity <= budget) {
     if (report) *report = Report{total, total, nv, 0, 0, 0, 0};
     return mesh;
   }
-  Options opt;
-  opt.target_triangles = total - (extremity - budget);
-  opt.locked.resize(nv);
-  for (size_t i = 0; i < nv; ++i) opt.locked[i] = mesh.part[i] == 0 || mesh.seam[i] != 0;
-  auto r = decimate(mesh, opt, report);
-  if (!r) return r.error();
-  // decimate() keeps survivors' attributes but not the tags: carry them over by position.
-  mesher::SkinnedMesh out = std::move(*r);
-  out.part.resize(out.positions.size());
-  out.seam.resize(out.positions.size());
-  std::vector<uint32_t> order(nv);
-  for (uint32_t i = 0; i < nv; ++i) order[i] = i;
-  auto less = [&](const glm::vec3& a, const glm::vec3& b) {
-    return a.x != b.x ? a.x < b.x : a.y != b.y ? a.y < b.y : a.z < b.z;
+  // One sub-mesh per part, decimated to its share of the budget, parts in parallel. Vertices
+  // shared with the rest of the body and seam vertices are locked.
+  struct Job {
+    mesher::SkinnedMesh sub;
+    Options opt;
+    Result<mesher::SkinnedMesh> result = Error{"", "", "not run"};
+    Report rep;
   };
-  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return less(mesh.positions[a], mesh.positions[b]); });
-  for (size_t i = 0; i < out.positions.size(); ++i) {
-    auto it = std::lower_bound(order.begin(), order.end(), out.positions[i],
-                               [&](uint32_t a, const glm::vec3& p) { return less(mesh.positions[a], p); });
-    if (it != order.end() && mesh.positions[*it] == out.positions[i]) {
-      out.part[i] = mesh.part[*it];
-      out.seam[i] = mesh.seam[*it];
-    }
+  std::vector<Job> jobs;
+  for (int p = 1; p < 8; ++p) {
+    if (tris[p].empty()) continue;
+    Job j;
+    std::vector<int> map(nv, -1);
+    auto add = [&](uint32_t i) {
+      if (map[i] < 0) {
+        map[i] = static_cast<int>(j.sub.positions.size());
+        j.sub.positions.push_back(mesh.positions[i]);
+        if (mesh.normals.size() == nv) j.sub.normals.push_back(mesh.normals[i]);
+        if (mesh.uvs.size() == nv) j.sub.uvs.push_back(mesh.uvs[i]);
+        if (mesh.joints.size() == nv) j.sub.joints.push_back(mesh.joints[i]);
+        if (mesh.weights.size() == nv) j.sub.weights.push_back(mesh.weights[i]);
+        j.sub.part.push_back(mesh.part[i]);
+        j.sub.seam.push_back(mesh.seam[i]);
+        j.opt.locked.push_back(shared[i] || mesh.seam[i] != 0);
+      }
+      return static_cast<uint32_t>(map[i]);
+    };
+    for (size_t t : tris[p])
+      for (int k = 0; k < 3; ++k) j.sub.indices.push_back(add(mesh.indices[t + k]));
+    size_t share = std::max<size_t>(1, budget * tris[p].size() / extremity);
+    j.opt.target_triangles = std::min(tris[p].size(), share);
+    jobs.push_back(std::move(j));
+  }
+  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
+  {
+    std::atomic<size_t> next{0};
+    auto worker = [&] {
+      for (size_t i; (i = next++) < jobs.size();) jobs[i].result = decimate(jobs[i].sub, jobs[i].opt, nullptr);
+    };
+    std::vector<std::thread> pool;
+    for (unsigned c = 1; c < std::min<size_t>(threads, jobs.size()); ++c) pool.emplace_back(worker);
+    worker();
+    for (auto& t : pool) t.join();
+  }
+  for (const Job& j : jobs)
+    if (!j.result) return j.result.error();
+  // Reassembly: the body and zipper triangles as they were, then each decimated part; vertices
+  // matched by position (locked ones are the same in both).
+  mesher::SkinnedMesh out;
+  std::unordered_map<uint64_t, std::vector<uint32_t>> index;
+  auto key = [](const glm::vec3& p) {
+    uint32_t b[3];
+    std::memcpy(b, &p, 12);
+    return (uint64_t(b[0]) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(b[1]) * 0xC2B2AE3D27D4EB4Full) ^ b[2];
+  };
+  auto add = [&](const mesher::SkinnedMesh& m, uint32_t i) -> uint32_t {
+    auto& bucket = index[key(m.positions[i])];
+    for (uint32_t o : bucket)
+      if (out.positions[o] == m.positions[i]) return o;
+    uint32_t n = static_cast<uint32_t>(out.positions.size());
+    out.positions.push_back(m.positions[i]);
+    if (!m.normals.empty()) out.normals.push_back(m.normals[i]);
+    if (!m.uvs.empty()) out.uvs.push_back(m.uvs[i]);
+    if (!m.joints.empty()) out.joints.push_back(m.joints[i]);
+    if (!m.weights.empty()) out.weights.push_back(m.weights[i]);
+    out.part.push_back(m.part[i]);
+    out.seam.push_back(m.seam[i]);
+    bucket.push_back(n);
+    return n;
+  };
+  for (size_t t = 0; t < mesh.indices.size(); t += 3)
+    if (triangle_part(mesh, t) == 0)
+      for (int k = 0; k < 3; ++k) out.indices.push_back(add(mesh, mesh.indices[t + k]));
+  for (const Job& j : jobs)
+    for (uint32_t i : j.result->indices) out.indices.push_back(add(*j.result, i));
+  if (report) {
+    report->triangles_before = total;
+    report->triangles_after = out.indices.size() / 3;
+    report->vertices_after = out.positions.size();
+    report->locked_vertices = 0;
+    for (const Job& j : jobs)
+      for (char l : j.opt.locked) report->locked_vertices += l != 0;
+    Distance d = mesh_distance(mesh.positions, mesh.indices, out.positions, out.indices);
+    report->hausdorff_m = d.hausdorff_m;
+    report->mean_m = d.mean_m;
   }
   return out;
 }

@@ -2,11 +2,16 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
+#include <memory>
 #include <thread>
 #include <chrono>
+#include <cstring>
+#include <unordered_map>
 
 #include "bb/decimate/extremities.h"
 #include "bb/mesher/mesh_check.h"
+#include "bb/modeler/implicit_surface.h"
 #include "bb/motion/walk.h"
 
 namespace bb::exporter {
@@ -42,6 +47,91 @@ std::vector<mesher::LodDensity> chain_of(int k) {
   return c;
 }
 
+// Level `level` with its full-resolution extremity triangles (the same OpenVDB head, hands and
+// feet at every level) replaced by those of `from`, the same extremities already decimated.
+// Seam loops are locked in decimation, so `from`'s extremities meet `level`'s zippers exactly;
+// vertices are matched by position.
+mesher::SkinnedMesh with_extremities_of(const mesher::SkinnedMesh& level, const mesher::SkinnedMesh& from) {
+  mesher::SkinnedMesh out;
+  auto key = [](const glm::vec3& p) {
+    uint32_t b[3];
+    std::memcpy(b, &p, 12);
+    return (uint64_t(b[0]) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(b[1]) * 0xC2B2AE3D27D4EB4Full) ^ b[2];
+  };
+  std::unordered_multimap<uint64_t, uint32_t> index;
+  auto add = [&](const mesher::SkinnedMesh& m, uint32_t i) -> uint32_t {
+    const glm::vec3& p = m.positions[i];
+    auto range = index.equal_range(key(p));
+    for (auto it = range.first; it != range.second; ++it)
+      if (out.positions[it->second] == p) return it->second;
+    uint32_t n = static_cast<uint32_t>(out.positions.size());
+    out.positions.push_back(p);
+    if (!m.normals.empty()) out.normals.push_back(m.normals[i]);
+    if (!m.uvs.empty()) out.uvs.push_back(m.uvs[i]);
+    if (!m.joints.empty()) out.joints.push_back(m.joints[i]);
+    if (!m.weights.empty()) out.weights.push_back(m.weights[i]);
+    out.part.push_back(m.part[i]);
+    out.seam.push_back(m.seam[i]);
+    index.emplace(key(p), n);
+    return n;
+  };
+  auto is_extremity = [](const mesher::SkinnedMesh& m, size_t t) {
+    uint8_t p = m.part[m.indices[t]];
+    return p != 0 && m.part[m.indices[t + 1]] == p && m.part[m.indices[t + 2]] == p;
+  };
+  for (size_t t = 0; t < level.indices.size(); t += 3)
+    if (!is_extremity(level, t))
+      for (int k = 0; k < 3; ++k) out.indices.push_back(add(level, level.indices[t + k]));
+  for (size_t t = 0; t < from.indices.size(); t += 3)
+    if (is_extremity(from, t))
+      for (int k = 0; k < 3; ++k) out.indices.push_back(add(from, from.indices[t + k]));
+  return out;
+}
+
+// Distance of a level to the skin, metres. Mesh -> skin: every vertex and face centre is moved
+// onto the iso-surface by Newton steps along the field's gradient; the length of that move is
+// its distance. Skin -> mesh: `skin` points (on the iso-surface) to the nearest triangle.
+struct SkinError {
+  double hausdorff_m = 0, mean_m = 0;
+};
+SkinError skin_error(const modeler::ImplicitSurface& surface, const mesher::SkinnedMesh& m,
+                     const std::vector<glm::vec3>& skin) {
+  auto to_skin = [&](glm::vec3 x) {
+    glm::vec3 x0 = x;
+    for (int it = 0; it < 8; ++it) {
+      glm::vec3 g;
+      float f = surface.field_gradient(x, &g) - modeler::kIso;
+      float g2 = glm::dot(g, g);
+      if (g2 < 1e-12f) break;
+      glm::vec3 step = (f / g2) * g;
+      float len = glm::length(step);
+      x -= len > 0.01f ? step * (0.01f / len) : step;  // at most 1 cm a step
+      if (len < 1e-6f) break;
+    }
+    return static_cast<double>(glm::length(x - x0));
+  };
+  SkinError e;
+  double sum1 = 0;
+  size_t n1 = 0;
+  auto take = [&](double d) {
+    e.hausdorff_m = std::max(e.hausdorff_m, d);
+    sum1 += d;
+    ++n1;
+  };
+  for (const auto& p : m.positions) take(to_skin(p));
+  for (size_t t = 0; t < m.indices.size(); t += 3)
+    take(to_skin((m.positions[m.indices[t]] + m.positions[m.indices[t + 1]] + m.positions[m.indices[t + 2]]) / 3.0f));
+  std::vector<double> d(skin.size());
+  mesher::distances_to_mesh(m.positions, m.indices, skin, d);
+  double sum2 = 0;
+  for (double x : d) {
+    e.hausdorff_m = std::max(e.hausdorff_m, x);
+    sum2 += x;
+  }
+  e.mean_m = 0.5 * (sum1 / std::max<size_t>(1, n1) + sum2 / std::max<size_t>(1, d.size()));
+  return e;
+}
+
 }  // namespace
 
 Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& opt) {
@@ -52,49 +142,66 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
   mo.lods = chain_of(opt.lods);
   const int k = static_cast<int>(mo.lods.size());
   for (int l = 1; l + 1 < k; ++l) mo.lods[l].vdb_extremities = true;  // decimated below
-  if (!opt.measure_errors) mo.error_samples = 0;
+  // Levels are checked and measured below, once final (the mesher's own checks and its
+  // reference-mesh distances would measure the undecimated levels).
+  mo.error_samples = 0;
+  mo.check_topology = false;
   auto t0 = Clock::now();
   auto lods = mesher::build_lods(body, mo);
   if (!lods) return lods.error();
   out.times.mesh = since(t0);
 
-  // LOD 0 and the middle levels: decimate the full-resolution extremities to a budget (LOD 0: a
-  // fixed one; then in proportion with the body's contours at that level). LOD 0 keeps the
-  // undecimated extremities as the source of the proxies' texture.
+  // Decimation, progressive: LOD 0's full-resolution extremities down to a fixed budget, then
+  // each middle level starts from the previous level's decimated extremities (the same OpenVDB
+  // meshes, seams locked) down to a budget in proportion with its contour triangles. LOD 0's
+  // undecimated mesh is kept as the source of the proxies' texture and of the skin samples.
   t0 = Clock::now();
   mesher::SkinnedMesh full_extremities = (*lods)[0].mesh;
-  // Levels are independent: decimate them on all cores.
-  std::vector<std::string> errors(k);
-  auto level = [&](int l) {
+  for (int l = 0; l + 1 < k; ++l) {
     mesher::Lod& lod = (*lods)[l];
+    if (l > 0) lod.mesh = with_extremities_of(lod.mesh, (*lods)[l - 1].mesh);
     size_t ext = extremity_triangles(lod.mesh);
     size_t body_tris = lod.mesh.triangle_count() - ext;
     size_t budget = l == 0 ? opt.lod0_extremity_triangles : std::max<size_t>(200, body_tris * 45 / 100);
-    if (budget == 0 || ext <= budget) return;
-    decimate::Report rep;
-    auto dec = decimate::decimate_extremities(lod.mesh, budget, &rep);
-    if (!dec) {
-      errors[l] = "level " + std::to_string(l) + ": decimation failed: " + dec.error().message();
-      return;
-    }
+    if (budget == 0 || ext <= budget) continue;
+    auto dec = decimate::decimate_extremities(lod.mesh, budget);
+    if (!dec) return Error{"", "level " + std::to_string(l), "decimation failed: " + dec.error().message()};
     lod.mesh = std::move(*dec);
+  }
+  out.times.decimate = since(t0);
+
+  // Checks (CGAL) and distances to the skin of the final levels, on all cores.
+  t0 = Clock::now();
+  std::unique_ptr<modeler::ImplicitSurface> surface;
+  std::vector<glm::vec3> skin;
+  const double height = body.height();
+  if (opt.measure_errors) {
+    surface = std::make_unique<modeler::ImplicitSurface>(body, body.skeleton->posture(body.sample_posture));
+    // Skin samples: LOD 0's full-resolution vertices that lie on the iso-surface (contour
+    // samples, projected OpenVDB vertices), at most ~20,000 of them.
+    const auto& fp = full_extremities.positions;
+    size_t stride = std::max<size_t>(1, fp.size() / 20000);
+    for (size_t i = 0; i < fp.size(); i += stride)
+      if (std::abs(surface->field(fp[i]) - modeler::kIso) < 1e-3f) skin.push_back(fp[i]);
+  }
+  auto finish = [&](int l) {
+    mesher::Lod& lod = (*lods)[l];
     auto check = mesher::check_mesh(lod.mesh.positions, lod.mesh.indices, true);
-    lod.report.triangles = lod.mesh.triangle_count();
-    lod.report.vertices = lod.mesh.positions.size();
-    lod.report.extremity_triangles = extremity_triangles(lod.mesh);
-    lod.report.closed = check.closed;
-    lod.report.manifold = check.manifold;
-    lod.report.oriented = check.oriented;
-    lod.report.self_intersection_count = check.self_intersections;
-    lod.report.self_intersections = check.self_intersections > 0;
-    // Triangle inequality: the decimated mesh is within (its distance to the full one) + (the
-    // full one's distance to the skin) of the skin.
-    double height = lod.report.hausdorff_rel > 0 ? lod.report.hausdorff_m / lod.report.hausdorff_rel : 0.0;
-    lod.report.hausdorff_m += rep.hausdorff_m;
-    lod.report.mean_m += rep.mean_m;
-    if (height > 0) {
-      lod.report.hausdorff_rel = lod.report.hausdorff_m / height;
-      lod.report.mean_rel = lod.report.mean_m / height;
+    mesher::LodReport& r = lod.report;
+    r.triangles = lod.mesh.triangle_count();
+    r.vertices = lod.mesh.positions.size();
+    r.extremity_triangles = extremity_triangles(lod.mesh);
+    r.closed = check.closed && check.connected_components == 1;
+    r.manifold = check.manifold;
+    r.oriented = check.oriented;
+    r.self_intersection_count = check.self_intersections;
+    r.self_intersections = check.self_intersections > 0;
+    if (surface) {
+      SkinError e = skin_error(*surface, lod.mesh, skin);
+      r.hausdorff_m = e.hausdorff_m;
+      r.mean_m = e.mean_m;
+      r.hausdorff_rel = e.hausdorff_m / height;
+      r.mean_rel = e.mean_m / height;
     }
   };
   {
@@ -102,15 +209,13 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
     unsigned cores = std::max(1u, std::thread::hardware_concurrency());
     std::atomic<int> next{0};
     auto worker = [&] {
-      for (int l; (l = next++) < k - 1;) level(l);
+      for (int l; (l = next++) < k;) finish(l);
     };
-    for (unsigned c = 1; c < std::min<unsigned>(cores, k - 1); ++c) threads.emplace_back(worker);
+    for (unsigned c = 1; c < std::min<unsigned>(cores, k); ++c) threads.emplace_back(worker);
     worker();
     for (auto& t : threads) t.join();
   }
-  for (const auto& e : errors)
-    if (!e.empty()) return Error{"", "", e};
-  out.times.decimate = since(t0);
+  out.times.checks = since(t0);
 
   out.input.body = &body;
   for (int l = 0; l < k; ++l) {

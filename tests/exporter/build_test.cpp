@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <set>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -79,4 +80,38 @@ TEST(Build, RuntimeLoadsTheLodSet) {
   EXPECT_EQ(m->textures.size(), 1u);
   EXPECT_GT(m->radius, 0.8f);
   EXPECT_LT(m->radius, 2.0f);
+}
+
+// Middle levels start from the previous level's decimated extremities: every extremity vertex of
+// level l+1 is a vertex of level l (decimation only removes vertices, never moves them), and each
+// level reports a measured distance to the skin that grows as the levels get coarser.
+TEST(Build, LevelsDecimateTheirExtremitiesProgressively) {
+  auto b = exporter::build_body(modeler::default_body());
+  ASSERT_TRUE(b) << b.error().message();
+  const auto& lods = b->input.lods;
+  ASSERT_GE(lods.size(), 4u);
+  for (size_t l = 0; l + 2 < lods.size(); ++l) {
+    const auto& a = lods[l].mesh;
+    const auto& c = lods[l + 1].mesh;
+    ASSERT_EQ(c.part.size(), c.positions.size());
+    std::set<std::array<float, 3>> prev;
+    for (const auto& p : a.positions) prev.insert({p.x, p.y, p.z});
+    size_t extremity = 0, found = 0;
+    for (size_t i = 0; i < c.positions.size(); ++i) {
+      if (c.part[i] == 0) continue;
+      ++extremity;
+      found += prev.count({c.positions[i].x, c.positions[i].y, c.positions[i].z});
+    }
+    EXPECT_GT(extremity, 100u) << "level " << l + 1;
+    EXPECT_EQ(found, extremity) << "level " << l + 1;
+    EXPECT_LT(lods[l + 1].report.triangles, lods[l].report.triangles);
+  }
+  for (const auto& l : lods) {
+    EXPECT_GT(l.report.hausdorff_rel, 0.0);
+    EXPECT_LT(l.report.hausdorff_rel, 0.05);
+    EXPECT_GT(l.report.mean_rel, 0.0);
+    EXPECT_LT(l.report.mean_rel, l.report.hausdorff_rel);
+    EXPECT_TRUE(l.report.closed && l.report.manifold && !l.report.self_intersections);
+  }
+  EXPECT_LT(lods.front().report.hausdorff_rel, lods.back().report.hausdorff_rel);
 }

@@ -24,10 +24,12 @@
 namespace bb::decimate {
 
 // Decimates the extremity triangles (all three vertices of one non-body part) of `mesh` until
-// the extremities hold about `extremity_triangles` triangles in all. Needs SkinnedMesh::part and
-// ::seam. The report's error is measured over the whole mesh.
+// the extremities hold about `extremity_triangles` triangles in all, each part its share in
+// proportion with its triangles. Needs SkinnedMesh::part and ::seam. Parts are decimated in
+// parallel on `threads` threads (0: one per core). The report's error is measured over the whole
+// mesh (skipped, and the call cheaper, without a report).
 Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh, size_t extremity_triangles,
-                                                 Report* report = nullptr);
+                                                 Report* report = nullptr, unsigned threads = 0);
 
 struct ProxyOptions {
   int texture_size = 256;                      // square RGBA8 texture, pixels

@@ -1,7 +1,7 @@
 // The whole offline pipeline for one body: modeler -> mesher -> decimate -> glTF.
 //
 //   LOD 0      contour-sampled body + OpenVDB head, hands and feet decimated to a budget
-//   LOD 1..K-2 coarser contours + the OpenVDB extremities decimated to a budget (seams locked)
+//   LOD 1..K-2 coarser contours + the previous level's extremities decimated further (seams locked)
 //   LOD K-1    coarsest contours + simple contour-sampled extremities textured from LOD 0 (proxies)
 // plus a procedural walk clip and any imported clips, written as one GLB (and optionally one
 // GLB per level).
@@ -25,11 +25,14 @@ struct BuildOptions {
   std::vector<motion::Clip> extra_clips;     // imported clips (already retargeted)
   bool proxies = true;                       // textured proxies at the lowest level
   size_t lod0_extremity_triangles = 4000;    // head, hands and feet of LOD 0 (0: full resolution)
-  bool measure_errors = true;                // distances to the implicit surface per level
+  // Per final level: Hausdorff and mean distance to the skin (mesh samples moved onto the
+  // iso-surface along the gradient; LOD 0's full-resolution vertices, which lie on the skin, to
+  // the mesh). Closed/manifold/self-intersection checks run either way.
+  bool measure_errors = true;
 };
 
 struct BuildTimes {
-  double mesh = 0, decimate = 0, proxies = 0, clips = 0, encode = 0, total = 0;  // seconds
+  double mesh = 0, decimate = 0, checks = 0, proxies = 0, clips = 0, encode = 0, total = 0;  // seconds
 };
 
 struct BuildOutput {
