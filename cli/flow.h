@@ -33,7 +33,7 @@ struct FlowSettings {
   float orbit_deg_per_s = 0.0f;  // camera orbit speed
   int quality_every = 4;         // compare images every k-th measured frame
   int msaa = 4;                  // samples per pixel of the scene window (both paths)
-  float texels_per_pixel = 1.0f; // impostor windows chosen for this many texels per pixel
+  float texels_per_pixel = 2.0f; // impostor windows chosen for this many texels per pixel
   int clip = -1;                 // -1: a clip named like "walk" if any, else 0
   float clip_speed_mps = 0;      // speed the clip walks at; 0: from the clip name "..._1.20mps" or none
   std::vector<int> keep_frames;  // measured frame indices whose images are returned
@@ -68,7 +68,7 @@ struct FlowArgs {
   bool json = false, scaling = false, distance_weighting = false;
   float orbit = 0;
   int msaa = 4;
-  float texels_per_pixel = 1.0f;
+  float texels_per_pixel = 2.0f;
   bool quiet = false;  // no summary on stdout (the demo prints its own)
   std::string scaling_list = "20,100,500,1000,2000,5000,10000";
   int scaling_frames = 10;

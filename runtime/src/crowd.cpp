@@ -24,8 +24,7 @@ glm::vec3 character_ta(const Model& m, const Character& ch, float time) {
 FramePlanner::FramePlanner(const Model& model, const ImpostorConfig& config)
     : model_(&model), config_(config), atlas_(config.page_size, config.max_pages, config.windows) {
   plan_.geometry.resize(model.lods.size());
-  plan_.snapshots.resize(static_cast<std::size_t>(atlas_.max_pages()));
-  plan_.page_lod.assign(static_cast<std::size_t>(atlas_.max_pages()), 0);
+  plan_.snapshots.resize(model.lods.size());
 }
 
 void FramePlanner::invalidate() {
@@ -194,10 +193,11 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
           s.window = glm::vec4(-1.0f + (2.0f * win.x + win.size) / page, -1.0f + (2.0f * win.y + win.size) / page, half,
                                static_cast<float>(win.page));
           s.rect = cs.rect;
-          plan_.snapshots[win.page].push_back(s);
-          plan_.page_lod[win.page] = window_lod[win.size_class];
+          const int slod = config_.snapshot_lod_from_screen ? std::min(lod_for(pixels, camera.height), lods - 1)
+                                                            : window_lod[win.size_class];
+          plan_.snapshots[slod].push_back(s);
           ++st.snapshots;
-          st.snapshot_triangles += m.lods[window_lod[win.size_class]].triangle_count();
+          st.snapshot_triangles += m.lods[slod].triangle_count();
         }
         plan_.billboards.push_back(BillboardGpu{
             glm::vec4(ta, cs.half_size),

@@ -152,16 +152,28 @@ void main() {
 }
 )";
 
+// The window holds the snapshot at about 2 texels per screen pixel (ImpostorConfig::
+// texels_per_pixel), premultiplied. Four bilinear taps at the positions of the standard 4x
+// multisample pattern (from the screen-space derivatives of the texture coordinates) average the
+// pixel's footprint, so the alpha is the pixel's coverage and the colour its mean, as in a
+// multisampled geometry frame.
 const char* kBillboardFs = R"(#version 450 core
 layout(binding = 2) uniform sampler2DArray u_atlas;
-uniform int u_blend;
+uniform int u_blend;  // 0: alpha test, 1: premultiplied blending, 2: alpha to coverage
 in vec3 v_uvl;
 layout(location = 0) out vec4 o_color;
+vec4 tap(vec2 uv) { return texture(u_atlas, vec3(uv, v_uvl.z)); }
 void main() {
-  vec4 c = texture(u_atlas, v_uvl);
+  vec2 dx = dFdx(v_uvl.xy), dy = dFdy(v_uvl.xy);
+  vec4 c = 0.25 * (tap(v_uvl.xy - 0.125 * dx - 0.375 * dy) + tap(v_uvl.xy + 0.375 * dx - 0.125 * dy) +
+                   tap(v_uvl.xy - 0.375 * dx + 0.125 * dy) + tap(v_uvl.xy + 0.125 * dx + 0.375 * dy));
   if (u_blend == 0) {
     if (c.a < 0.5) discard;
     o_color = vec4(c.rgb / c.a, 1.0);
+  } else if (u_blend == 2) {
+    // The alpha picks the share of the pixel's samples, so the colour goes in straight.
+    if (c.a < 1.0 / 255.0) discard;
+    o_color = vec4(c.rgb / c.a, c.a);
   } else {
     if (c.a < 1.0 / 255.0) discard;
     o_color = c;
@@ -260,6 +272,11 @@ struct Renderer::Impl {
   StreamBuffer instances, snapshots, billboards;
   std::vector<InstanceGpu> instance_scratch;
   std::vector<SnapshotGpu> snapshot_scratch;
+  struct Due {
+    std::int32_t lod, page, index;  // index into the plan's list of that lod
+  };
+  std::vector<Due> due;
+  std::vector<int> scratch_lod;  // per snapshot_scratch entry
   glm::vec3 light = glm::normalize(glm::vec3(0.4f, 0.8f, 0.6f));
 
   struct ShadeLocations {
@@ -274,6 +291,27 @@ struct Renderer::Impl {
     glBindTextureUnit(1, m.texture >= 0 ? textures[m.texture] : white);
   }
 
+  // Clears the rects of snapshot_scratch[first, first + count) and draws those snapshots into
+  // the bound framebuffer (the entries are sorted by LOD; scratch_lod holds each one's level).
+  // Clip distances must be on.
+  void draw_snapshot_range(std::size_t first, std::size_t count) {
+    glUseProgram(prog_clear);
+    glBindVertexArray(lods[0].vao_snapshot);
+    glDepthFunc(GL_ALWAYS);
+    glDrawArraysInstancedBaseInstance(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(count), static_cast<GLuint>(first));
+    glDepthFunc(GL_LESS);
+    glUseProgram(prog_snapshot);
+    for (std::size_t b = first, end = first + count; b < end;) {
+      std::size_t e = b;
+      while (e < end && scratch_lod[e] == scratch_lod[b]) ++e;
+      glBindVertexArray(lods[scratch_lod[b]].vao_snapshot);
+      draw_lod(prog_snapshot, scratch_lod[b], static_cast<GLsizei>(e - b), static_cast<GLuint>(b));
+      b = e;
+    }
+  }
+
+  void take_snapshots(const FramePlan& plan);
+
   void draw_lod(GLuint prog, int lod, GLsizei count, GLuint base_instance) {
     const MeshLod& ml = model->lods[lod];
     for (const Primitive& p : ml.primitives) {
@@ -284,6 +322,48 @@ struct Renderer::Impl {
     }
   }
 };
+
+void Renderer::Impl::take_snapshots(const FramePlan& plan) {
+  const int nlods = static_cast<int>(lods.size());
+  due.clear();
+  for (int lod = 0; lod < static_cast<int>(plan.snapshots.size()); ++lod)
+    for (std::size_t i = 0; i < plan.snapshots[lod].size(); ++i) {
+      const int page = static_cast<int>(plan.snapshots[lod][i].window.w);
+      assert(page < config.max_pages && "plan from a planner with another ImpostorConfig");
+      due.push_back(Due{std::min(lod, nlods - 1), page, static_cast<std::int32_t>(i)});
+    }
+  if (due.empty()) return;
+  // One pass for all pages when the vertex shader can choose the layer, else one per page.
+  if (!layered)
+    std::sort(due.begin(), due.end(), [](const Due& a, const Due& b) { return a.page != b.page ? a.page < b.page : a.lod < b.lod; });
+  snapshot_scratch.clear();
+  scratch_lod.clear();
+  for (const Due& u : due) {
+    snapshot_scratch.push_back(plan.snapshots[u.lod][u.index]);
+    scratch_lod.push_back(u.lod);
+  }
+  snapshots.upload(snapshot_scratch.data(), snapshot_scratch.size() * sizeof(SnapshotGpu));
+  GLint prev_fbo = 0, vp[4];
+  glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &prev_fbo);
+  glGetIntegerv(GL_VIEWPORT, vp);
+  glBindFramebuffer(GL_DRAW_FRAMEBUFFER, atlas_fbo);
+  glViewport(0, 0, config.page_size, config.page_size);
+  for (int k = 0; k < 4; ++k) glEnable(GL_CLIP_DISTANCE0 + k);
+  if (layered) {
+    draw_snapshot_range(0, due.size());
+  } else {
+    for (std::size_t b = 0; b < due.size();) {
+      std::size_t e = b;
+      while (e < due.size() && due[e].page == due[b].page) ++e;
+      glNamedFramebufferTextureLayer(atlas_fbo, GL_COLOR_ATTACHMENT0, atlas, 0, due[b].page);
+      draw_snapshot_range(b, e - b);
+      b = e;
+    }
+  }
+  for (int k = 0; k < 4; ++k) glDisable(GL_CLIP_DISTANCE0 + k);
+  glBindFramebuffer(GL_DRAW_FRAMEBUFFER, static_cast<GLuint>(prev_fbo));
+  glViewport(vp[0], vp[1], vp[2], vp[3]);
+}
 
 Renderer::Renderer() : impl_(std::make_unique<Impl>()) {}
 
@@ -469,79 +549,8 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
   glDepthMask(GL_TRUE);
   glDepthFunc(GL_LESS);
 
-  // 1. Snapshots due (section 4: shared pages, few passes): one pass for all pages when the
-  //    vertex shader can choose the layer, else one pass per page.
-  if (options.take_snapshots && d.layered) {
-    d.snapshot_scratch.clear();
-    d.lod_runs.assign(d.lods.size(), {0, 0});
-    for (std::size_t lod = 0; lod < d.lods.size(); ++lod) {
-      d.lod_runs[lod][1] = static_cast<GLuint>(d.snapshot_scratch.size());
-      for (std::size_t page = 0; page < plan.snapshots.size(); ++page)
-        if (!plan.snapshots[page].empty() &&
-            std::clamp(plan.page_lod[page], 0, static_cast<int>(d.lods.size()) - 1) == static_cast<int>(lod)) {
-          assert(static_cast<int>(page) < d.config.max_pages && "plan from a planner with another ImpostorConfig");
-          d.snapshot_scratch.insert(d.snapshot_scratch.end(), plan.snapshots[page].begin(), plan.snapshots[page].end());
-        }
-      d.lod_runs[lod][0] = static_cast<GLuint>(d.snapshot_scratch.size()) - d.lod_runs[lod][1];
-    }
-    if (!d.snapshot_scratch.empty()) {
-      d.snapshots.upload(d.snapshot_scratch.data(), d.snapshot_scratch.size() * sizeof(SnapshotGpu));
-      GLint prev_fbo = 0, vp[4];
-      glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &prev_fbo);
-      glGetIntegerv(GL_VIEWPORT, vp);
-      glBindFramebuffer(GL_DRAW_FRAMEBUFFER, d.atlas_fbo);
-      glViewport(0, 0, d.config.page_size, d.config.page_size);
-      for (int k = 0; k < 4; ++k) glEnable(GL_CLIP_DISTANCE0 + k);
-      glUseProgram(d.prog_clear);
-      glBindVertexArray(d.lods[0].vao_snapshot);
-      glDepthFunc(GL_ALWAYS);
-      glDrawArraysInstancedBaseInstance(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(d.snapshot_scratch.size()), 0);
-      glDepthFunc(GL_LESS);
-      glUseProgram(d.prog_snapshot);
-      for (std::size_t lod = 0; lod < d.lods.size(); ++lod) {
-        if (d.lod_runs[lod][0] == 0) continue;
-        glBindVertexArray(d.lods[lod].vao_snapshot);
-        d.draw_lod(d.prog_snapshot, static_cast<int>(lod), static_cast<GLsizei>(d.lod_runs[lod][0]), d.lod_runs[lod][1]);
-      }
-      for (int k = 0; k < 4; ++k) glDisable(GL_CLIP_DISTANCE0 + k);
-      glBindFramebuffer(GL_DRAW_FRAMEBUFFER, static_cast<GLuint>(prev_fbo));
-      glViewport(vp[0], vp[1], vp[2], vp[3]);
-    }
-  } else if (options.take_snapshots) {
-    d.snapshot_scratch.clear();
-    for (const auto& page : plan.snapshots) d.snapshot_scratch.insert(d.snapshot_scratch.end(), page.begin(), page.end());
-    if (!d.snapshot_scratch.empty()) {
-      d.snapshots.upload(d.snapshot_scratch.data(), d.snapshot_scratch.size() * sizeof(SnapshotGpu));
-      GLint prev_fbo = 0, vp[4];
-      glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &prev_fbo);
-      glGetIntegerv(GL_VIEWPORT, vp);
-      glBindFramebuffer(GL_DRAW_FRAMEBUFFER, d.atlas_fbo);
-      glViewport(0, 0, d.config.page_size, d.config.page_size);
-      for (int k = 0; k < 4; ++k) glEnable(GL_CLIP_DISTANCE0 + k);
-      GLuint base = 0;
-      for (std::size_t page = 0; page < plan.snapshots.size(); ++page) {
-        const auto& list = plan.snapshots[page];
-        if (list.empty()) continue;
-        assert(static_cast<int>(page) < d.config.max_pages && "plan from a planner with another ImpostorConfig");
-        const GLsizei count = static_cast<GLsizei>(list.size());
-        glNamedFramebufferTextureLayer(d.atlas_fbo, GL_COLOR_ATTACHMENT0, d.atlas, 0, static_cast<GLint>(page));
-        const int lod = std::clamp(plan.page_lod[page], 0, static_cast<int>(d.lods.size()) - 1);
-        // Clear the windows (colour to transparent, depth to far), then draw the characters.
-        glUseProgram(d.prog_clear);
-        glBindVertexArray(d.lods[0].vao_snapshot);
-        glDepthFunc(GL_ALWAYS);
-        glDrawArraysInstancedBaseInstance(GL_TRIANGLE_STRIP, 0, 4, count, base);
-        glDepthFunc(GL_LESS);
-        glUseProgram(d.prog_snapshot);
-        glBindVertexArray(d.lods[lod].vao_snapshot);
-        d.draw_lod(d.prog_snapshot, lod, count, base);
-        base += static_cast<GLuint>(count);
-      }
-      for (int k = 0; k < 4; ++k) glDisable(GL_CLIP_DISTANCE0 + k);
-      glBindFramebuffer(GL_DRAW_FRAMEBUFFER, static_cast<GLuint>(prev_fbo));
-      glViewport(vp[0], vp[1], vp[2], vp[3]);
-    }
-  }
+  // 1. Snapshots due (section 4: shared pages, few passes).
+  if (options.take_snapshots) d.take_snapshots(plan);
   glViewport(0, 0, plan.camera.width, plan.camera.height);
   const glm::mat4 viewproj = plan.camera.projection() * plan.camera.view();
 
@@ -571,8 +580,12 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
     glProgramUniformMatrix4fv(d.prog_billboard, d.loc_bb_viewproj, 1, GL_FALSE, glm::value_ptr(viewproj));
     glProgramUniform3fv(d.prog_billboard, d.loc_bb_eye, 1, glm::value_ptr(plan.camera.eye));
     glProgramUniform3fv(d.prog_billboard, d.loc_bb_up, 1, glm::value_ptr(plan.camera.up));
-    glProgramUniform1i(d.prog_billboard, d.loc_bb_blend, options.blend_impostors ? 1 : 0);
     glBindTextureUnit(2, d.atlas);
+    GLint sample_buffers = 0;
+    glGetIntegerv(GL_SAMPLE_BUFFERS, &sample_buffers);
+    const bool a2c = !options.blend_impostors && options.alpha_to_coverage && sample_buffers > 0;
+    glProgramUniform1i(d.prog_billboard, d.loc_bb_blend, options.blend_impostors ? 1 : a2c ? 2 : 0);
+    if (a2c) glEnable(GL_SAMPLE_ALPHA_TO_COVERAGE);
     if (options.blend_impostors) {
       glEnable(GL_BLEND);
       glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
@@ -580,6 +593,7 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
     glBindVertexArray(d.vao_billboard);
     glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(plan.billboards.size()));
     glDisable(GL_BLEND);
+    glDisable(GL_SAMPLE_ALPHA_TO_COVERAGE);
   }
   glBindVertexArray(0);
   glUseProgram(0);

@@ -225,7 +225,9 @@ TEST(FramePlanner, WindowSizeCullingAndNearSwitch) {
   crowd.add(Character{});
   crowd.add(Character{glm::vec3(0, 0, -1000)});  // behind the far plane: culled
   crowd.add(Character{glm::vec3(0, 0, 200)});    // behind the camera: culled
-  FramePlanner planner(m);
+  ImpostorConfig one_to_one;
+  one_to_one.texels_per_pixel = 1.0f;  // section 4.3's rule
+  FramePlanner planner(m, one_to_one);
   SceneCamera cam;
   cam.far_plane = 500.0f;
   cam.target = m.ta;
@@ -247,6 +249,12 @@ TEST(FramePlanner, WindowSizeCullingAndNearSwitch) {
   place(300.0f);  // larger than the largest window: geometry in auto mode, impostor if forced
   EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kAuto).stats.geometry, 1);
   EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.impostors, 1);
+  // The default supersamples twice: 100 px -> 200 texels wanted -> the 256 window, 50 px -> 128.
+  FramePlanner twice(m);
+  place(100.0f);
+  EXPECT_EQ(twice.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.impostors_per_window[0], 1);
+  place(50.0f);
+  EXPECT_EQ(twice.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.impostors_per_window[1], 1);
 }
 
 TEST(FramePlanner, AtlasFullFallsBackToGeometry) {

@@ -2,7 +2,7 @@
 //  - geometry path: GPU skinning from the model's baked clips (a float texture), one instanced
 //    draw per LOD level and primitive for all the characters of the model;
 //  - impostor path: the snapshots due are rendered into windows of a 2D-array atlas (one layer per
-//    page) with the orthographic camera of section 4.2, one instanced draw per page and primitive;
+//    page) with the camera of section 4.2, one instanced draw per LOD level and primitive;
 //    then every impostor is one camera-facing quad of one instanced draw.
 // Shading is the same in both paths (base colour x texture, one directional light in world space),
 // so a snapshot matches the geometry it replaces. Needs a current OpenGL 4.5 core context; all
@@ -26,6 +26,11 @@ struct DrawOptions {
   // Impostor quads: alpha-tested at 0.5 (default, order independent) or premultiplied blending
   // (soft edges; best with back-to-front order).
   bool blend_impostors = false;
+  // Impostor quads into a multisampled framebuffer (and blend_impostors off): the coverage of the
+  // pixel in the window (alpha, averaged over four taps) chooses the share of the pixel's samples
+  // the quad covers, so edges come out antialiased like multisampled geometry, in any order and
+  // with the depth test. Into a single-sampled framebuffer the alpha test at 0.5 is used.
+  bool alpha_to_coverage = true;
 };
 
 class Renderer {
@@ -41,8 +46,8 @@ class Renderer {
   // Draws one frame into the currently bound draw framebuffer, with the plan's camera viewport
   // (0, 0, width, height). Does not clear it. Snapshots first (they change the atlas), then
   // geometry, then impostors. `plan` must come from a FramePlanner of the same model and config.
-  // GL state left changed: program 0, VAO 0, texture units 0-2, viewport, depth test on (LESS,
-  // writes on), blending and face culling off.
+  // GL state left changed: program 0, VAO 0, texture units 0-3, viewport, depth test on (LESS,
+  // writes on), blending, alpha to coverage and face culling off.
   void draw(const FramePlan& plan, const DrawOptions& options = {});
 
   // Copies page `page` of the atlas (RGBA8, premultiplied, rows bottom to top) for inspection.
