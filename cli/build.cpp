@@ -29,6 +29,7 @@ struct BuildArgs {
   std::vector<std::string> bodies, motions;
   std::string out = "out";
   int variants = 0, lods = 4, jobs = 0;
+  unsigned inner_threads = 0;  // threads inside one body's build (1 when bodies run in parallel)
   uint64_t seed = 1;
   bool json = false, per_lod = false, no_errors = false;
 };
@@ -61,6 +62,7 @@ void run_job(Job& job, const BuildArgs& a) {
   exporter::BuildOptions opt;
   opt.lods = a.lods;
   opt.measure_errors = !a.no_errors;
+  opt.threads = a.inner_threads;
   for (const auto& m : a.motions) {
     auto clip = motion::load_bvh(m, *body.skeleton);
     if (!clip) {
@@ -138,6 +140,7 @@ int run(BuildArgs a) {
   }
   int workers = a.jobs > 0 ? a.jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   workers = std::min<int>(workers, static_cast<int>(jobs.size()));
+  a.inner_threads = workers > 1 ? 1 : 0;
   std::atomic<size_t> next{0};
   std::atomic<int> done{0};
   std::mutex io;

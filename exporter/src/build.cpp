@@ -164,7 +164,7 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
     size_t body_tris = lod.mesh.triangle_count() - ext;
     size_t budget = l == 0 ? opt.lod0_extremity_triangles : std::max<size_t>(200, body_tris * 45 / 100);
     if (budget == 0 || ext <= budget) continue;
-    auto dec = decimate::decimate_extremities(lod.mesh, budget);
+    auto dec = decimate::decimate_extremities(lod.mesh, budget, nullptr, opt.threads);
     if (!dec) return Error{"", "level " + std::to_string(l), "decimation failed: " + dec.error().message()};
     lod.mesh = std::move(*dec);
   }
@@ -206,7 +206,7 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
   };
   {
     std::vector<std::thread> threads;
-    unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+    unsigned cores = opt.threads ? opt.threads : std::max(1u, std::thread::hardware_concurrency());
     std::atomic<int> next{0};
     auto worker = [&] {
       for (int l; (l = next++) < k;) finish(l);

@@ -29,6 +29,9 @@ struct BuildOptions {
   // iso-surface along the gradient; LOD 0's full-resolution vertices, which lie on the skin, to
   // the mesh). Closed/manifold/self-intersection checks run either way.
   bool measure_errors = true;
+  // Threads for the parallel stages (extremity parts, per-level checks); 0: one per core. A batch
+  // that runs several bodies at once gives each 1.
+  unsigned threads = 0;
 };
 
 struct BuildTimes {
