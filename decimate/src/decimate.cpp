@@ -5,7 +5,6 @@
 
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
 
-#include <OpenMesh/Tools/Decimater/DecimaterT.hh>
 #include "modules.h"
 
 namespace bb::decimate {
@@ -16,7 +15,7 @@ struct Traits : OpenMesh::DefaultTraits {
   using Point = OpenMesh::Vec3d;  // double precision quadrics
   using Normal = OpenMesh::Vec3d;
   VertexAttributes(OpenMesh::Attributes::Status);
-  FaceAttributes(OpenMesh::Attributes::Status | OpenMesh::Attributes::Normal);
+  FaceAttributes(OpenMesh::Attributes::Status);
   EdgeAttributes(OpenMesh::Attributes::Status);
   HalfedgeAttributes(OpenMesh::Attributes::Status | OpenMesh::Attributes::PrevHalfedge);
 };
@@ -58,7 +57,6 @@ Result<mesher::SkinnedMesh> decimate(const mesher::SkinnedMesh& in, const Option
   size_t locked = 0;
   for (size_t i = 0; i < opt.locked.size(); ++i)
     if (opt.locked[i]) { mesh.status(vh[i]).set_locked(true); ++locked; }
-  mesh.update_face_normals();
   // Original vertex normals: given, or area-weighted from the input faces.
   OpenMesh::VPropHandleT<Mesh::Normal> original_normal;
   mesh.add_property(original_normal);
@@ -81,7 +79,7 @@ Result<mesher::SkinnedMesh> decimate(const mesher::SkinnedMesh& in, const Option
 
   auto t0 = std::chrono::steady_clock::now();
   {
-    OpenMesh::Decimater::DecimaterT<Mesh> dec(mesh);
+    detail::FastDecimaterT<Mesh> dec(mesh);
     detail::ModQuadricNormalizedT<Mesh>::Handle quadric;
     detail::ModSkinWeightsT<Mesh>::Handle weights;
     dec.add(quadric);
@@ -95,10 +93,7 @@ Result<mesher::SkinnedMesh> decimate(const mesher::SkinnedMesh& in, const Option
       dec.module(weights).set_max_difference(opt.max_weight_difference);
     }
     if (!dec.initialize()) return Error{"", "", "OpenMesh decimater failed to initialize"};
-    if (opt.target_triangles > 0)
-      dec.decimate_to_faces(0, opt.target_triangles);
-    else
-      dec.decimate();
+    dec.decimate_to_faces(opt.target_triangles);
   }
   mesh.garbage_collection();
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -1,4 +1,11 @@
-// OpenMesh decimation modules of bodybuilder (run by OpenMesh's DecimaterT).
+// OpenMesh decimation modules of bodybuilder, and the driver that runs them.
+//
+// FastDecimaterT is OpenMesh's DecimaterT (one heap entry per vertex: its cheapest legal
+// collapse; after a collapse the removed vertex's ring is re-evaluated) with its own test of the
+// collapse's topology: TriConnectivity::is_collapse_ok of OpenMesh 9 allocates and compares
+// strings on every call, which made it the largest single cost of decimation here. The test is
+// the same (locked vertex, deleted elements, the link condition, boundary cases, the tetrahedron
+// case, at least two faces at v0), with a reusable tag array for the one-ring intersection.
 //
 // ModSkinWeightsT forbids collapsing two vertices whose skin weights differ by more than a
 // threshold (L1 distance of the influence distributions). Human-specific: it keeps the vertex
@@ -18,10 +25,15 @@
 
 #include <OpenMesh/Core/Geometry/QuadricT.hh>
 #include <OpenMesh/Core/Utils/Property.hh>
+#include <OpenMesh/Tools/Decimater/BaseDecimaterT.hh>
 #include <OpenMesh/Tools/Decimater/ModBaseT.hh>
 
 #include <algorithm>
 #include <array>
+#include <cfloat>
+#include <cstdint>
+#include <queue>
+#include <vector>
 #include <cmath>
 #include <utility>
 
@@ -169,6 +181,126 @@ class ModQuadricNormalizedT : public OpenMesh::Decimater::ModBaseT<MeshT> {
   OpenMesh::VPropHandleT<double> area_;
   OpenMesh::VPropHandleT<Normal> original_;
   double min_cos_flip_ = 0.5, min_cos_original_ = 0.0, max_error2_ = 0;
+};
+
+template <typename MeshT>
+class FastDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
+ public:
+  using Base = OpenMesh::Decimater::BaseDecimaterT<MeshT>;
+  using CollapseInfo = OpenMesh::Decimater::CollapseInfoT<MeshT>;
+  using HalfedgeHandle = typename MeshT::HalfedgeHandle;
+  using VertexHandle = typename MeshT::VertexHandle;
+
+  explicit FastDecimaterT(MeshT& mesh) : Base(mesh) {}
+
+  // Collapses until at most `target_faces` faces are left (0: while a legal collapse is left).
+  // Returns the number of collapses. Call initialize() first.
+  size_t decimate_to_faces(size_t target_faces) {
+    MeshT& m = Base::mesh();
+    const size_t nv = m.n_vertices();
+    tag_.assign(nv, 0);
+    stamp_.assign(nv, 0);
+    target_.assign(nv, HalfedgeHandle());
+    queue_ = {};
+    for (auto v : m.vertices())
+      if (!m.status(v).deleted()) heap_vertex(v);
+    size_t nf = m.n_faces(), collapses = 0;
+    std::vector<VertexHandle> support;
+    while (!queue_.empty() && (target_faces == 0 || nf > target_faces)) {
+      Entry e = queue_.top();
+      queue_.pop();
+      if (e.stamp != stamp_[e.vertex]) continue;  // superseded by a later evaluation
+      ++stamp_[e.vertex];
+      CollapseInfo ci(m, target_[e.vertex]);
+      if (!legal(ci)) continue;  // re-evaluated when a neighbour changes
+      support.clear();
+      for (auto w : m.vv_range(ci.v0)) support.push_back(w);
+      nf -= (m.is_boundary(ci.v0v1) || m.is_boundary(ci.v1v0)) ? 1 : 2;
+      this->preprocess_collapse(ci);
+      m.collapse(ci.v0v1);
+      this->postprocess_collapse(ci);
+      ++collapses;
+      for (auto w : support) heap_vertex(w);
+    }
+    return collapses;
+  }
+
+ private:
+  struct Entry {
+    float priority;
+    int vertex;
+    uint32_t stamp;
+    bool operator<(const Entry& o) const { return priority > o.priority; }  // min-heap
+  };
+
+  // The vertex's cheapest legal collapse goes on the heap (older entries become stale).
+  void heap_vertex(VertexHandle v) {
+    MeshT& m = Base::mesh();
+    uint32_t st = ++stamp_[v.idx()];
+    if (m.status(v).locked()) return;
+    float best = FLT_MAX;
+    HalfedgeHandle best_h;
+    for (auto h : m.voh_range(v)) {
+      CollapseInfo ci(m, h);
+      if (!legal(ci)) continue;
+      float p = this->collapse_priority(ci);
+      if (p >= 0.0f && p < best) {
+        best = p;
+        best_h = h;
+      }
+    }
+    if (!best_h.is_valid()) return;
+    target_[v.idx()] = best_h;
+    queue_.push(Entry{best, v.idx(), st});
+  }
+
+  // BaseDecimaterT::is_collapse_legal with TriConnectivity::is_collapse_ok inlined.
+  bool legal(const CollapseInfo& ci) {
+    MeshT& m = Base::mesh();
+    if (m.status(ci.v0).locked()) return false;
+    if (m.status(m.edge_handle(ci.v0v1)).deleted() || m.status(ci.v0).deleted() || m.status(ci.v1).deleted())
+      return false;
+    VertexHandle vl, vr;
+    // The edges v1-vl and vl-v0 must not both be boundary edges; nor v0-vr and vr-v1.
+    if (!m.is_boundary(ci.v0v1)) {
+      HalfedgeHandle h1 = m.next_halfedge_handle(ci.v0v1), h2 = m.next_halfedge_handle(h1);
+      vl = m.to_vertex_handle(h1);
+      if (m.is_boundary(m.opposite_halfedge_handle(h1)) && m.is_boundary(m.opposite_halfedge_handle(h2))) return false;
+    }
+    if (!m.is_boundary(ci.v1v0)) {
+      HalfedgeHandle h1 = m.next_halfedge_handle(ci.v1v0), h2 = m.next_halfedge_handle(h1);
+      vr = m.to_vertex_handle(h1);
+      if (m.is_boundary(m.opposite_halfedge_handle(h1)) && m.is_boundary(m.opposite_halfedge_handle(h2))) return false;
+    }
+    if (vl == vr) return false;  // equal, or both invalid
+    const bool b0 = m.is_boundary(ci.v0), b1 = m.is_boundary(ci.v1);
+    // An edge between two boundary vertices must be a boundary edge.
+    if (b0 && b1 && !m.is_boundary(ci.v0v1) && !m.is_boundary(ci.v1v0)) return false;
+    // Link condition: v0 and v1 share no neighbour but vl and vr.
+    if (++tag_counter_ == 0) {
+      std::fill(tag_.begin(), tag_.end(), 0);
+      tag_counter_ = 1;
+    }
+    for (auto w : m.vv_range(ci.v1)) tag_[w.idx()] = tag_counter_;
+    for (auto w : m.vv_range(ci.v0))
+      if (tag_[w.idx()] == tag_counter_ && w != vl && w != vr) return false;
+    // A tetrahedron would collapse into a doubled triangle.
+    if (ci.vl.is_valid() && ci.vr.is_valid() && m.find_halfedge(ci.vl, ci.vr).is_valid() && m.valence(ci.vl) == 3 &&
+        m.valence(ci.vr) == 3)
+      return false;
+    if (b0) {
+      if (!b1) return false;                             // boundary into interior
+      if (ci.vl.is_valid() && ci.vr.is_valid()) return false;  // only one ring intersection
+    }
+    // At least two faces at v0.
+    if (m.cw_rotated_halfedge_handle(m.cw_rotated_halfedge_handle(ci.v0v1)) == ci.v0v1) return false;
+    return true;
+  }
+
+  std::vector<uint32_t> tag_, stamp_;
+  uint32_t tag_counter_ = 0;
+  std::vector<HalfedgeHandle> target_;
+  std::priority_queue<Entry> queue_;
 };
 
 }  // namespace bb::decimate::detail
