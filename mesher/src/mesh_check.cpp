@@ -4,6 +4,7 @@
 #include "bb/mesher/mesh_check.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -172,6 +173,60 @@ MeshCheck check_mesh(std::span<const glm::vec3> positions, std::span<const uint3
     r.self_intersections = count;
   }
   return r;
+}
+
+std::vector<uint32_t> intersecting_triangles(std::span<const glm::vec3> positions, std::span<const uint32_t> indices,
+                                             std::span<const uint32_t> subset) {
+  const size_t nt = indices.size() / 3;
+  std::vector<uint32_t> out;
+  if (subset.empty() || nt == 0) return out;
+  // Only triangles in the grid cells that the subset's boxes touch can meet the subset.
+  auto box_of = [&](size_t t, glm::vec3* lo, glm::vec3* hi) {
+    glm::vec3 a = positions[indices[3 * t]], b = positions[indices[3 * t + 1]], c = positions[indices[3 * t + 2]];
+    *lo = glm::min(a, glm::min(b, c));
+    *hi = glm::max(a, glm::max(b, c));
+  };
+  const float cell = 0.02f;
+  auto cells = [&](const glm::vec3& lo, const glm::vec3& hi, auto&& fn) {
+    glm::ivec3 a(glm::floor(lo / cell)), b(glm::floor(hi / cell));
+    for (int x = a.x; x <= b.x; ++x)
+      for (int y = a.y; y <= b.y; ++y)
+        for (int z = a.z; z <= b.z; ++z)
+          if (fn((uint64_t(uint32_t(x) & 0x1FFFFF) << 42) | (uint64_t(uint32_t(y) & 0x1FFFFF) << 21) |
+                 uint64_t(uint32_t(z) & 0x1FFFFF)))
+            return;
+  };
+  std::unordered_map<uint64_t, char> occupied;
+  for (uint32_t t : subset) {
+    glm::vec3 lo, hi;
+    box_of(t, &lo, &hi);
+    cells(lo, hi, [&](uint64_t k) { occupied[k] = 1; return false; });
+  }
+  std::vector<std::array<Point, 3>> tris(nt);
+  std::vector<Box> all, some;
+  std::vector<int64_t> slot(nt, -1);
+  for (size_t t = 0; t < nt; ++t) {
+    glm::vec3 lo, hi;
+    box_of(t, &lo, &hi);
+    bool near = false;
+    cells(lo, hi, [&](uint64_t k) { return near = occupied.count(k) > 0; });
+    if (!near) continue;
+    for (int k = 0; k < 3; ++k) tris[t][k] = to_point(positions[indices[3 * t + k]]);
+    slot[t] = int64_t(all.size());
+    all.emplace_back(tris[t][0].bbox() + tris[t][1].bbox() + tris[t][2].bbox(), t);
+  }
+  some.reserve(subset.size());
+  for (uint32_t t : subset) some.push_back(all[size_t(slot[t])]);
+  std::vector<char> hit(nt, 0);
+  auto callback = [&](const Box& a, const Box& b) {
+    size_t i = a.handle(), j = b.handle();
+    if (i == j || (hit[i] && hit[j])) return;
+    if (adjacent_intersect(tris[i].data(), tris[j].data(), &indices[3 * i], &indices[3 * j])) hit[i] = hit[j] = 1;
+  };
+  CGAL::box_intersection_d(some.begin(), some.end(), all.begin(), all.end(), callback);
+  for (size_t t = 0; t < nt; ++t)
+    if (hit[t]) out.push_back(uint32_t(t));
+  return out;
 }
 
 namespace {

@@ -41,6 +41,12 @@ double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock:
 
 thread_local StageTimes g_times;
 
+uint64_t position_key(const glm::vec3& p) {
+  uint32_t b[3];
+  std::memcpy(b, &p, 12);
+  return (uint64_t(b[0]) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(b[1]) * 0xC2B2AE3D27D4EB4Full) ^ b[2];
+}
+
 // Skinning regions: which bones a vertex may follow.
 enum Region : int8_t { kTorso, kArmL, kArmR, kLegL, kLegR, kHead, kHandL, kHandR, kFootL, kFootR, kRegions };
 
@@ -107,12 +113,11 @@ float axis_length(const std::vector<glm::vec3>& axis) {
   return total;
 }
 
-// Ring frames along the axis, parallel-transported u.
-std::vector<Frame> ring_frames(const std::vector<glm::vec3>& axis, int rings) {
+// Ring frames along the axis at arc lengths `at` (increasing), parallel-transported u.
+std::vector<Frame> ring_frames(const std::vector<glm::vec3>& axis, const std::vector<float>& at) {
   std::vector<Frame> out;
-  float total = axis_length(axis);
-  for (int k = 0; k < rings; ++k) {
-    Frame f = frame_at(axis, total * float(k) / float(rings - 1));
+  for (float s : at) {
+    Frame f = frame_at(axis, s);
     glm::vec3 u;
     if (out.empty()) {
       // Start with the body's forward (+Z) or, for a forward axis, up (+Y).
@@ -126,6 +131,18 @@ std::vector<Frame> ring_frames(const std::vector<glm::vec3>& axis, int rings) {
     out.push_back(f);
   }
   return out;
+}
+
+// `rings` evenly spaced arc lengths from 0 to the axis' length.
+std::vector<float> even_rings(const std::vector<glm::vec3>& axis, int rings) {
+  std::vector<float> at(rings);
+  float total = axis_length(axis);
+  for (int k = 0; k < rings; ++k) at[k] = total * float(k) / float(rings - 1);
+  return at;
+}
+
+std::vector<Frame> ring_frames(const std::vector<glm::vec3>& axis, int rings) {
+  return ring_frames(axis, even_rings(axis, rings));
 }
 
 float sample_ray(const SubField& field, const glm::vec3& o, const glm::vec3& d, float max_t, float fallback) {
@@ -143,6 +160,12 @@ float sample_ray(const SubField& field, const glm::vec3& o, const glm::vec3& d, 
 // so that no two pieces sample the same stretch of skin (near-coincident surfaces make the
 // union's intersection curves degenerate).
 thread_local const SubField* g_whole = nullptr;
+// Cap rays (the torso's pelvis cap reaches down between the thighs) may go further through the
+// blend before they count as deep on levels whose creases are fitted after the union: the groin
+// lies farther below the pelvis than the cap's own skin, by up to its own depth on slim
+// variants, and the fitting needs the cap there. (Coarser levels keep the shorter reach: a cap
+// reaching deep between the thighs follows the pelvis when the legs swing apart.)
+thread_local float g_cap_margin = 0.6f;
 float extend_to_whole(const glm::vec3& o, const glm::vec3& d, float t_own, float margin, bool land = true) {
   if (!g_whole) return t_own;
   const float h = 0.002f;
@@ -230,13 +253,14 @@ std::vector<Ring> cast_cap(const SubField& field, const Frame& f, int points, in
       float th = glm::two_pi<float>() * float(k) / float(points);
       glm::vec3 d = std::cos(phi) * (std::cos(th) * f.u + std::sin(th) * f.v) + std::sin(phi) * axis;
       float t = sample_ray(field, f.c, d, 1.0f, 0.005f);
-      if (extend) t = extend_to_whole(f.c, d, t, 0.6f * t, land);
+      if (extend) t = extend_to_whole(f.c, d, t, g_cap_margin * t, land);
       r.ids.push_back(mesh.add(f.c + t * d, uint8_t(MeshPart::kBody), 0, region));
       r.angles.push_back(th);
     }
     rings.push_back(std::move(r));
   }
   float t = sample_ray(field, f.c, axis, 1.0f, 0.005f);
+  if (extend) t = extend_to_whole(f.c, axis, t, g_cap_margin * t, land);
   *pole = mesh.add(f.c + t * axis, uint8_t(MeshPart::kBody), 0, region);
   return rings;
 }
@@ -328,7 +352,7 @@ struct Attachment {
 };
 
 PieceMesh build_piece(const PieceSpec& spec, const PartDensity& density, int cup_rings, int cup_points, bool vdb,
-                      float ring_gap, Attachment* att = nullptr) {
+                      float ring_gap, bool deep_cap, Attachment* att = nullptr) {
   PieceMesh mesh;
   const SubField& field = *spec.field;
   const int rings = std::max(2, density.contours * spec.links + 1);
@@ -338,7 +362,6 @@ PieceMesh build_piece(const PieceSpec& spec, const PartDensity& density, int cup
     glm::vec3 dir = glm::normalize(axis.back() - axis[axis.size() - 2]);
     axis.back() -= ring_gap * dir;
   }
-  std::vector<Frame> frames = ring_frames(axis, rings);
   std::vector<uint32_t>& idx = mesh.indices;
   // Start cap.
   uint32_t pole = 0;
@@ -346,8 +369,12 @@ PieceMesh build_piece(const PieceSpec& spec, const PartDensity& density, int cup
   // Legs keep their own skin: the two thighs going deep into each other meet in mirrored,
   // nearly coincident triangles at the body's midplane, which the union cannot round safely.
   const bool extend = spec.region != kLegL && spec.region != kLegR;
+  std::vector<float> at = even_rings(axis, rings);
+  std::vector<Frame> frames = ring_frames(axis, at);
+  const int ring_count = int(frames.size());
   Ring first = cast_ring(field, frames[0], density.points, mesh, uint8_t(MeshPart::kBody), 0, spec.region, nullptr,
                          extend, land);
+  g_cap_margin = deep_cap ? 1.0f : 0.6f;
   std::vector<Ring> cap = cast_cap(field, frames[0], density.points, std::max(2, density.points / 4), true, mesh,
                                    spec.region, &pole, land, extend);
   // Cap rings go from the equator (next to `first`) to the pole; seen along the piece they come
@@ -363,8 +390,8 @@ PieceMesh build_piece(const PieceSpec& spec, const PartDensity& density, int cup
     else fan(pole, first, false, idx);
   }
   Ring prev = std::move(first);
-  for (int k = 1; k < rings; ++k) {
-    bool last = k == rings - 1;
+  for (int k = 1; k < ring_count; ++k) {
+    bool last = k == ring_count - 1;
     // The last ring (at the seam) keeps the piece's own skin: the extremity is meshed from it.
     Ring r = cast_ring(field, frames[k], density.points, mesh, uint8_t(MeshPart::kBody), last ? 1 : 0, spec.region,
                        nullptr, !last && extend, land);
@@ -769,6 +796,128 @@ bool reattach(PlainMesh& m, const std::vector<Attachment>& atts) {
   return true;
 }
 
+// The union leaves the creases where pieces meet (armpit vault, groin) off the skin: a contour
+// piece samples its own skin, the blend of two pieces is seen by neither at full resolution, and
+// the union's intersection curves lie inside the blend. Fits the mesh there:
+//  1. vertices farther than `tol` from the skin (first-order distance |F - iso| / |grad F|) move
+//     onto it (Newton along the gradient, at most `max_move`);
+//  2. up to `passes` times, every edge whose midpoint is farther than `tol` is split and the new
+//     vertex put on the skin (at most half the edge's length away); a triangle with split edges
+//     becomes 2, 3 or 4 triangles in its own orientation;
+//  3. guard: the vertices of triangles that now intersect another triangle go half-way back to
+//     their chord positions (on the unfitted surface), round after round; after 12 rounds all
+//     go back. The chord surface is the joined mesh itself, free of self-intersections, so the
+//     result is too.
+// Edges with both ends in `frozen` are kept (extremities, seam rings); frozen vertices stay.
+// Returns the number of vertices added.
+size_t fit_creases(PlainMesh& m, const SubField& skin, float tol, float max_move, float min_edge, int passes,
+                   const std::vector<char>& frozen) {
+  constexpr uint32_t kNone = UINT32_MAX;
+  const size_t n0 = m.positions.size();
+  std::vector<glm::vec3> chord = m.positions;
+  auto is_frozen = [&](uint32_t v) { return v < frozen.size() && frozen[v]; };
+  auto off_skin = [&](const glm::vec3& p) {
+    glm::vec3 g;
+    float f = skin.field_gradient(p, &g) - modeler::kIso;
+    float gl = glm::length(g);
+    return gl > 1e-6f && std::abs(f) > tol * gl;
+  };
+  for (size_t i = 0; i < n0; ++i)
+    if (!is_frozen(uint32_t(i)) && off_skin(m.positions[i])) m.positions[i] = skin.project(m.positions[i], max_move);
+  std::vector<char> active(m.indices.size() / 3, 1);  // triangles whose edges are tested
+  for (int pass = 0; pass < passes; ++pass) {
+    std::unordered_map<uint64_t, uint32_t> split;
+    auto ekey = [](uint32_t a, uint32_t b) {
+      if (a > b) std::swap(a, b);
+      return (uint64_t(a) << 32) | b;
+    };
+    const size_t nt = m.indices.size() / 3;
+    split.reserve(pass == 0 ? nt * 2 : nt / 4);
+    const size_t before = m.positions.size();
+    for (size_t t = 0; t < nt; ++t)
+      for (int e = 0; active[t] && e < 3; ++e) {
+        uint32_t a = m.indices[3 * t + e], b = m.indices[3 * t + (e + 1) % 3];
+        if (is_frozen(a) && is_frozen(b)) continue;
+        auto [it, fresh] = split.try_emplace(ekey(a, b), kNone);
+        if (!fresh) continue;
+        const glm::vec3 pa = m.positions[a], pb = m.positions[b];
+        float len = glm::distance(pa, pb);
+        if (len < min_edge) continue;
+        glm::vec3 mid = 0.5f * (pa + pb);
+        if (!off_skin(mid)) continue;
+        it->second = uint32_t(m.positions.size());
+        m.positions.push_back(skin.project(mid, std::min(max_move, 0.5f * len)));
+        chord.push_back(0.5f * (chord[a] + chord[b]));
+      }
+    if (m.positions.size() == before) break;
+    std::vector<uint32_t> out;
+    std::vector<char> next_active;
+    out.reserve(m.indices.size() * 2);
+    next_active.reserve(nt * 2);
+    for (size_t t = 0; t < nt; ++t) {
+      // The triangle as a polygon: corners and the midpoints of split edges, in order.
+      uint32_t poly[6];
+      bool is_mid[6];
+      int n = 0, splits = 0;
+      for (int e = 0; e < 3; ++e) {
+        uint32_t a = m.indices[3 * t + e], b = m.indices[3 * t + (e + 1) % 3];
+        poly[n] = a, is_mid[n++] = false;
+        auto it = split.find(ekey(a, b));
+        if (it != split.end() && it->second != kNone) poly[n] = it->second, is_mid[n++] = true, ++splits;
+      }
+      auto tri = [&](int i, int j, int k) {
+        out.insert(out.end(), {poly[i % n], poly[j % n], poly[k % n]});
+        next_active.push_back(splits > 0);
+      };
+      if (splits == 0) {
+        tri(0, 1, 2);
+      } else if (splits == 3) {
+        tri(5, 0, 1), tri(1, 2, 3), tri(3, 4, 5), tri(1, 3, 5);
+      } else if (splits == 1) {
+        int p = 0;
+        while (!is_mid[p]) ++p;
+        tri(p, p + 1, p + 2), tri(p, p + 2, p + 3);
+      } else {
+        // The corner between the two midpoints is cut off; the rest is a quad (mB, x, y, mA)
+        // split along its shorter diagonal (on the chord surface, where it is planar).
+        int c = 0;
+        while (!(is_mid[(c + n - 1) % n] && is_mid[(c + 1) % n] && !is_mid[c])) ++c;
+        tri(c + n - 1, c, c + 1);
+        int q0 = c + 1, q1 = c + 2, q2 = c + 3, q3 = c + 4;
+        float d02 = glm::distance(chord[poly[q0 % n]], chord[poly[q2 % n]]);
+        float d13 = glm::distance(chord[poly[q1 % n]], chord[poly[q3 % n]]);
+        if (d02 <= d13) tri(q0, q1, q2), tri(q0, q2, q3);
+        else tri(q1, q2, q3), tri(q1, q3, q0);
+      }
+    }
+    m.indices = std::move(out);
+    active = std::move(next_active);
+  }
+  // Guard: only triangles with a moved vertex can take part in an intersection.
+  const size_t nt = m.indices.size() / 3;
+  for (int round = 0; round < 12; ++round) {
+    std::vector<uint32_t> moved;
+    for (size_t t = 0; t < nt; ++t) {
+      const uint32_t* v = &m.indices[3 * t];
+      if (m.positions[v[0]] != chord[v[0]] || m.positions[v[1]] != chord[v[1]] || m.positions[v[2]] != chord[v[2]])
+        moved.push_back(uint32_t(t));
+    }
+    std::vector<uint32_t> bad = intersecting_triangles(m.positions, m.indices, moved);
+    if (bad.empty()) break;
+    if (round == 11) {
+      m.positions = chord;
+      break;
+    }
+    std::vector<char> done(m.positions.size(), 0);
+    for (uint32_t t : bad)
+      for (int k = 0; k < 3; ++k) {
+        uint32_t v = m.indices[3 * t + k];
+        if (!done[v]) m.positions[v] = chord[v] + 0.5f * (m.positions[v] - chord[v]), done[v] = 1;
+      }
+  }
+  return m.positions.size() - n0;
+}
+
 // The union can leave a tiny closed bubble where an extended ray enclosed a pocket of the
 // blend outside the neighbour; drop components under 1 % of the triangles (never a limb).
 void drop_small_components(PlainMesh& m) {
@@ -819,6 +968,7 @@ std::vector<LodDensity> default_lod_chain() {
   c[0].arm = {12, 20};
   c[0].leg = {12, 24};
   c[0].vdb_extremities = true;
+  c[0].crease_tolerance = 0.002f;  // crease fitting: the armpits and groin within 0.2 % of the height
   c[0].screen_coverage = 0.5f;
   c[1].torso = {8, 28};
   c[1].arm = {7, 14};
@@ -903,7 +1053,7 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
       int cup_points = i == 0 ? d.head_points : (i < 3 ? d.hand_points : d.foot_points);
       float spacing = axis_length(spec.axis) / float(pd.contours * spec.links);
       float gap = std::max(0.003f * m.height / 1.75f, 0.35f * spacing);
-      pieces.push_back(build_piece(spec, pd, cup, cup_points, d.vdb_extremities, gap,
+      pieces.push_back(build_piece(spec, pd, cup, cup_points, d.vdb_extremities, gap, d.crease_tolerance > 0,
                                    d.vdb_extremities ? &attachments[i] : nullptr));
     }
     g_times.contours += since(t0);
@@ -932,7 +1082,7 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
         int cup = i == 0 ? d.head_rings : (i < 3 ? d.hand_rings : d.foot_rings);
         float spacing = axis_length(spec.axis) / float(pd.contours * spec.links);
         float gap = std::max(0.003f * m.height / 1.75f, 0.35f * spacing);
-        PieceMesh p = build_piece(spec, pd, cup, 0, true, gap);
+        PieceMesh p = build_piece(spec, pd, cup, 0, true, gap, d.crease_tolerance > 0);
         full.push_back({p.positions, p.indices});
         pieces[i] = std::move(p);
       }
@@ -943,6 +1093,23 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
     for (const Attachment& a : attachments) pieces.push_back(a.ext);  // for the attribute lookup
     drop_small_components(*joined);
     g_times.joining += since(t0);
+    if (d.crease_tolerance > 0) {
+      t0 = Clock::now();
+      // Extremity and seam vertices (by exact position) stay as they are.
+      std::unordered_map<uint64_t, const glm::vec3*> tagged;
+      for (const PieceMesh& p : pieces)
+        for (size_t i = 0; i < p.positions.size(); ++i)
+          if (p.part[i] != 0 || p.seam[i]) tagged.emplace(position_key(p.positions[i]), &p.positions[i]);
+      std::vector<char> frozen(joined->positions.size(), 0);
+      for (size_t i = 0; i < frozen.size(); ++i) {
+        auto it = tagged.find(position_key(joined->positions[i]));
+        frozen[i] = it != tagged.end() && *it->second == joined->positions[i];
+      }
+      size_t added = fit_creases(*joined, *m.whole, d.crease_tolerance * m.height, 0.012f * m.height,
+                                 0.002f * m.height, d.crease_passes, frozen);
+      if (std::getenv("BB_MESHER_DEBUG")) std::fprintf(stderr, "lod %zu: refined, %zu vertices added\n", level, added);
+      g_times.refining += since(t0);
+    }
 
     // Attributes: original vertices by exact position, new (intersection) vertices from their
     // neighbours.
@@ -1104,6 +1271,24 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
         std::fprintf(stderr, "lod %zu: mesh->skin max %.4f at (%.3f %.3f %.3f); skin->mesh max %.4f at (%.3f %.3f %.3f)\n",
                      level, h1, pts[i1].x, pts[i1].y, pts[i1].z, h2, reference_points[i2].x, reference_points[i2].y,
                      reference_points[i2].z);
+        // The worst places, at least 5 cm apart, both directions.
+        for (int dir = 0; dir < 2; ++dir) {
+          const std::vector<double>& dd = dir == 0 ? d1 : d2;
+          const std::vector<glm::vec3>& pp = dir == 0 ? pts : reference_points;
+          std::vector<size_t> order(dd.size());
+          std::iota(order.begin(), order.end(), size_t(0));
+          std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return dd[a] > dd[b]; });
+          std::vector<glm::vec3> shown;
+          for (size_t o : order) {
+            if (shown.size() == 6) break;
+            bool near = false;
+            for (const glm::vec3& q : shown) near |= glm::distance(q, pp[o]) < 0.05f;
+            if (near) continue;
+            shown.push_back(pp[o]);
+            std::fprintf(stderr, "   %s %.4f at (%.3f %.3f %.3f)\n", dir == 0 ? "mesh->skin" : "skin->mesh", dd[o],
+                         pp[o].x, pp[o].y, pp[o].z);
+          }
+        }
       }
       g_times.errors += since(t0);
     }

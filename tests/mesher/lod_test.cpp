@@ -37,7 +37,9 @@ void expect_valid(const std::vector<Lod>& lods) {
     EXPECT_TRUE(l.report.manifold);
     EXPECT_TRUE(l.report.oriented);
     EXPECT_EQ(l.report.self_intersection_count, 0u);
-    if (i > 0) EXPECT_LT(l.report.triangles, lods[i - 1].report.triangles);
+    if (i > 0) {
+      EXPECT_LT(l.report.triangles, lods[i - 1].report.triangles);
+    }
     const SkinnedMesh& m = l.mesh;
     ASSERT_EQ(m.weights.size(), m.positions.size());
     ASSERT_EQ(m.joints.size(), m.positions.size());
@@ -49,7 +51,9 @@ void expect_valid(const std::vector<Lod>& lods) {
       ASSERT_NEAR(w.x + w.y + w.z + w.w, 1.0f, 1e-6f) << "vertex " << v;
       for (int k = 0; k < 4; ++k) {
         ASSERT_GE(w[k], 0.0f);
-        if (w[k] == 0) ASSERT_EQ(m.joints[v][k], 0) << "unused slot holds joint 0";
+        if (w[k] == 0) {
+          ASSERT_EQ(m.joints[v][k], 0) << "unused slot holds joint 0";
+        }
       }
       ASSERT_NEAR(glm::length(m.normals[v]), 1.0f, 1e-4f);
     }

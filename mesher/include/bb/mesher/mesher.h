@@ -49,6 +49,13 @@ struct LodDensity {
   // SkinnedMesh::part and zipped along SkinnedMesh::seam loops (decimation works on them);
   // false: they are contour-sampled cups (self-contained coarse levels; part/seam still tagged).
   bool vdb_extremities = false;
+  // Crease fitting after the union, as a fraction of the body height (0: off). Where pieces meet
+  // (armpits, groin) the contour pieces miss the skin's blend and the union's intersection
+  // curves lie inside it: vertices farther than this from the skin are moved onto it, then edges
+  // whose midpoint is farther are split with the new vertex on the skin, up to `crease_passes`
+  // times; moves that would make triangles intersect are taken back (see mesher.cpp).
+  float crease_tolerance = 0;
+  int crease_passes = 4;
   float screen_coverage = 0;  // MSFT_screencoverage of this level (fraction of screen height)
 };
 
@@ -84,6 +91,7 @@ struct StageTimes {
   double contours = 0;    // star-shaped contour sampling, all levels
   double extremities = 0; // OpenVDB field sampling + volumeToMesh + clipping
   double joining = 0;     // zipping seams and CGAL union of the pieces, all levels
+  double refining = 0;    // crease refinement (LodDensity::crease_tolerance), all levels
   double skinning = 0;    // weights and normals, all levels
   double checks = 0;      // CGAL topology checks, all levels
   double errors = 0;      // distance measurements, all levels
