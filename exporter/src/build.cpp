@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <future>
+#include <optional>
 #include <memory>
 #include <thread>
 #include <chrono>
@@ -157,6 +159,17 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
   // undecimated mesh is kept as the source of the proxies' texture and of the skin samples.
   t0 = Clock::now();
   mesher::SkinnedMesh full_extremities = (*lods)[0].mesh;
+  // The proxies need only the lowest level (never decimated) and the full-resolution
+  // extremities: bake them alongside the decimation.
+  double proxy_seconds = 0;
+  std::future<Result<decimate::Proxies>> proxies_job;
+  if (opt.proxies)
+    proxies_job = std::async(opt.threads == 1 ? std::launch::deferred : std::launch::async, [&] {
+      auto tp = Clock::now();
+      auto r = decimate::bake_proxies((*lods)[k - 1].mesh, full_extremities);
+      proxy_seconds = since(tp);
+      return r;
+    });
   for (int l = 0; l + 1 < k; ++l) {
     mesher::Lod& lod = (*lods)[l];
     if (l > 0) lod.mesh = with_extremities_of(lod.mesh, (*lods)[l - 1].mesh);
@@ -217,6 +230,10 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
   }
   out.times.checks = since(t0);
 
+  // The proxies read the lowest level: finish them before the levels move into the output.
+  std::optional<Result<decimate::Proxies>> proxies;
+  if (opt.proxies) proxies.emplace(proxies_job.get());
+
   out.input.body = &body;
   for (int l = 0; l < k; ++l) {
     ExportLod e;
@@ -225,16 +242,16 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
     e.screen_coverage = mo.lods[l].screen_coverage;
     out.input.lods.push_back(std::move(e));
   }
-  // Lowest level: textured proxies baked from LOD 0.
-  t0 = Clock::now();
+  // Lowest level: textured proxies baked from LOD 0 (times.proxies: the baking itself, which
+  // overlaps the decimation when more than one thread is allowed).
   if (opt.proxies) {
-    auto prox = decimate::bake_proxies(out.input.lods.back().mesh, full_extremities);
+    auto& prox = *proxies;
     if (!prox) return Error{"", "proxies", prox.error().message()};
     out.input.lods.back().mesh = std::move(prox->mesh);
     out.input.lods.back().texture = 0;
     out.input.textures.push_back(Image{prox->width, prox->height, std::move(prox->rgba)});
   }
-  out.times.proxies = since(t0);
+  out.times.proxies = proxy_seconds;
 
   t0 = Clock::now();
   for (float v : opt.walk_speeds) {
