@@ -15,6 +15,7 @@ void report_stages(benchmark::State& state) {
   state.counters["contours_ms"] = 1e3 * t.contours;
   state.counters["extremities_ms"] = 1e3 * t.extremities;
   state.counters["joining_ms"] = 1e3 * t.joining;
+  state.counters["refining_ms"] = 1e3 * t.refining;
   state.counters["skinning_ms"] = 1e3 * t.skinning;
   state.counters["checks_ms"] = 1e3 * t.checks;
   state.counters["errors_ms"] = 1e3 * t.errors;

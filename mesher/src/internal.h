@@ -84,4 +84,21 @@ struct PlainMesh {
 };
 Result<PlainMesh> mesh_union(const std::vector<PlainMesh>& pieces);
 
+// The union leaves the creases where pieces meet (armpit vault, groin) off the skin: a contour
+// piece samples its own skin, the blend of two pieces is seen by neither at full resolution, and
+// the union's intersection curves lie inside the blend. Fits the mesh there:
+//  1. vertices farther than `tol` from the skin (first-order distance |F - iso| / |grad F|) move
+//     onto it (Newton along the gradient, at most `max_move`);
+//  2. up to `passes` times, every edge whose midpoint is farther than `tol` is split and the new
+//     vertex put on the skin (at most half the edge's length away); a triangle with split edges
+//     becomes 2, 3 or 4 triangles in its own orientation;
+//  3. guard: the vertices of triangles that now intersect another triangle go half-way back to
+//     their chord positions (on the unfitted surface), round after round; after 12 rounds all
+//     go back. The chord surface is the joined mesh itself, free of self-intersections, so the
+//     result is too.
+// Edges with both ends in `frozen` are kept (extremities, seam rings); frozen vertices stay.
+// Returns the number of vertices added.
+size_t fit_creases(PlainMesh& m, const SubField& skin, float tol, float max_move, float min_edge, int passes,
+                   const std::vector<char>& frozen);
+
 }  // namespace bb::mesher::detail

@@ -525,7 +525,7 @@ struct BodyModel {
   float height = 1.75f;
 };
 
-Result<BodyModel> analyse(const modeler::Body& body) {
+Result<BodyModel> analyse(const modeler::Body& body, const MesherOptions& options) {
   BodyModel m;
   if (!body.skeleton) return Error{"", body.name, "the body has no skeleton"};
   if (body.primitives.empty()) return Error{"", body.name, "the body has no primitives"};
@@ -627,7 +627,7 @@ Result<BodyModel> analyse(const modeler::Body& body) {
     t.prims = prims_of(0);
     t.cup_center = lerp(pos("skullbase"), pos("skull_tip"), 0.45f);
     t.cup_pole = pos("skull_tip") - pos("skullbase");
-    t.ext_voxel = 0.006f * scale;
+    t.ext_voxel = options.vdb_voxel_m * scale;
     m.pieces.push_back(std::move(t));
   }
   for (int side = 0; side < 2; ++side) {
@@ -647,7 +647,7 @@ Result<BodyModel> analyse(const modeler::Body& body) {
       if (body.primitives[i].joint == id.at(s + "sternoclavicular")) a.prims.push_back(int(i));
     a.cup_center = lerp(P("wrist"), P("middle1"), 0.55f);
     a.cup_pole = P("middle_tip") - P("wrist");
-    a.ext_voxel = 0.003f * scale;
+    a.ext_voxel = options.vdb_hand_voxel_m * scale;
     m.pieces.push_back(std::move(a));
   }
   for (int side = 0; side < 2; ++side) {
@@ -665,7 +665,7 @@ Result<BodyModel> analyse(const modeler::Body& body) {
     glm::vec3 c = lerp(P("ankle"), P("metatarsophalangeal"), 0.15f);
     l.cup_center = c;
     l.cup_pole = P("ankle") - P("knee");  // latitudes sweep from the rim down, not over the top
-    l.ext_voxel = 0.006f * scale;
+    l.ext_voxel = options.vdb_voxel_m * scale;
     m.pieces.push_back(std::move(l));
   }
   for (PieceSpec& p : m.pieces) {
@@ -720,7 +720,7 @@ Status build_vdb_extremity(const modeler::ImplicitSurface& surface, PieceSpec& p
   return Ok{};
 }
 
-[[maybe_unused]] double distance_to_skin(const SubField& f, const glm::vec3& x) {
+double distance_to_skin(const SubField& f, const glm::vec3& x) {
   glm::vec3 y = f.project(x, 0.2f, 20);
   glm::vec3 g;
   float v = f.field_gradient(y, &g) - modeler::kIso;
@@ -796,21 +796,39 @@ bool reattach(PlainMesh& m, const std::vector<Attachment>& atts) {
   return true;
 }
 
-// The union leaves the creases where pieces meet (armpit vault, groin) off the skin: a contour
-// piece samples its own skin, the blend of two pieces is seen by neither at full resolution, and
-// the union's intersection curves lie inside the blend. Fits the mesh there:
-//  1. vertices farther than `tol` from the skin (first-order distance |F - iso| / |grad F|) move
-//     onto it (Newton along the gradient, at most `max_move`);
-//  2. up to `passes` times, every edge whose midpoint is farther than `tol` is split and the new
-//     vertex put on the skin (at most half the edge's length away); a triangle with split edges
-//     becomes 2, 3 or 4 triangles in its own orientation;
-//  3. guard: the vertices of triangles that now intersect another triangle go half-way back to
-//     their chord positions (on the unfitted surface), round after round; after 12 rounds all
-//     go back. The chord surface is the joined mesh itself, free of self-intersections, so the
-//     result is too.
-// Edges with both ends in `frozen` are kept (extremities, seam rings); frozen vertices stay.
-// Returns the number of vertices added.
-size_t fit_creases(PlainMesh& m, const SubField& skin, float tol, float max_move, float min_edge, int passes,
+// The union can leave a tiny closed bubble where an extended ray enclosed a pocket of the
+// blend outside the neighbour; drop components under 1 % of the triangles (never a limb).
+void drop_small_components(PlainMesh& m) {
+  const size_t nv = m.positions.size(), nt = m.indices.size() / 3;
+  std::vector<int> parent(nv);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int x) { while (parent[x] != x) x = parent[x] = parent[parent[x]]; return x; };
+  for (size_t t = 0; t < nt; ++t) {
+    parent[find(int(m.indices[3 * t + 1]))] = find(int(m.indices[3 * t]));
+    parent[find(int(m.indices[3 * t + 2]))] = find(int(m.indices[3 * t]));
+  }
+  std::unordered_map<int, size_t> size;
+  for (size_t t = 0; t < nt; ++t) ++size[find(int(m.indices[3 * t]))];
+  if (size.size() < 2) return;
+  std::vector<uint32_t> kept;
+  for (size_t t = 0; t < nt; ++t)
+    if (size[find(int(m.indices[3 * t]))] * 100 >= nt)
+      kept.insert(kept.end(), m.indices.begin() + 3 * t, m.indices.begin() + 3 * t + 3);
+  // Unreferenced vertices are compacted away.
+  std::vector<int64_t> map(nv, -1);
+  PlainMesh out;
+  for (uint32_t& i : kept) {
+    if (map[i] < 0) { map[i] = int64_t(out.positions.size()); out.positions.push_back(m.positions[i]); }
+    i = uint32_t(map[i]);
+  }
+  out.indices = std::move(kept);
+  m = std::move(out);
+}
+
+}  // namespace
+
+// See internal.h.
+size_t detail::fit_creases(PlainMesh& m, const SubField& skin, float tol, float max_move, float min_edge, int passes,
                    const std::vector<char>& frozen) {
   constexpr uint32_t kNone = UINT32_MAX;
   const size_t n0 = m.positions.size();
@@ -918,37 +936,6 @@ size_t fit_creases(PlainMesh& m, const SubField& skin, float tol, float max_move
   return m.positions.size() - n0;
 }
 
-// The union can leave a tiny closed bubble where an extended ray enclosed a pocket of the
-// blend outside the neighbour; drop components under 1 % of the triangles (never a limb).
-void drop_small_components(PlainMesh& m) {
-  const size_t nv = m.positions.size(), nt = m.indices.size() / 3;
-  std::vector<int> parent(nv);
-  std::iota(parent.begin(), parent.end(), 0);
-  auto find = [&](int x) { while (parent[x] != x) x = parent[x] = parent[parent[x]]; return x; };
-  for (size_t t = 0; t < nt; ++t) {
-    parent[find(int(m.indices[3 * t + 1]))] = find(int(m.indices[3 * t]));
-    parent[find(int(m.indices[3 * t + 2]))] = find(int(m.indices[3 * t]));
-  }
-  std::unordered_map<int, size_t> size;
-  for (size_t t = 0; t < nt; ++t) ++size[find(int(m.indices[3 * t]))];
-  if (size.size() < 2) return;
-  std::vector<uint32_t> kept;
-  for (size_t t = 0; t < nt; ++t)
-    if (size[find(int(m.indices[3 * t]))] * 100 >= nt)
-      kept.insert(kept.end(), m.indices.begin() + 3 * t, m.indices.begin() + 3 * t + 3);
-  // Unreferenced vertices are compacted away.
-  std::vector<int64_t> map(nv, -1);
-  PlainMesh out;
-  for (uint32_t& i : kept) {
-    if (map[i] < 0) { map[i] = int64_t(out.positions.size()); out.positions.push_back(m.positions[i]); }
-    i = uint32_t(map[i]);
-  }
-  out.indices = std::move(kept);
-  m = std::move(out);
-}
-
-}  // namespace
-
 std::vector<glm::vec3> detail::sample_contour(const SubField& field, const glm::vec3& center, const glm::vec3& tangent,
                                               const glm::vec3& reference, int points) {
   Frame f;
@@ -968,7 +955,7 @@ std::vector<LodDensity> default_lod_chain() {
   c[0].arm = {12, 20};
   c[0].leg = {12, 24};
   c[0].vdb_extremities = true;
-  c[0].crease_tolerance = 0.002f;  // crease fitting: the armpits and groin within 0.2 % of the height
+  c[0].crease_tolerance = 0.0015f;  // crease fitting: armpits, groin and shoulders within 0.15 % of the height
   c[0].screen_coverage = 0.5f;
   c[1].torso = {8, 28};
   c[1].arm = {7, 14};
@@ -1002,7 +989,7 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
       return Error{"", "lods[" + std::to_string(i) + "]", "extremity rings must be >= 1"};
   }
   auto t0 = Clock::now();
-  auto model = analyse(body);
+  auto model = analyse(body, options);
   if (!model) return model.error();
   BodyModel& m = *model;
   g_whole = m.whole.get();
@@ -1030,7 +1017,16 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
   if (options.error_samples > 0) {
     t0 = Clock::now();
     reference = detail::reference_mesh(*m.whole, 0.005f * m.height / 1.75f);
-    reference_points = reference.positions;
+    // Skin samples: the reference's vertices that Newton put on the skin (where the reference
+    // bridged a gap narrower than its voxel, between fingers, some stay off it).
+    for (const glm::vec3& p : reference.positions) {
+      glm::vec3 g;
+      float f = m.whole->field_gradient(p, &g) - modeler::kIso;
+      if (std::abs(f) <= 1e-4f * glm::length(g)) reference_points.push_back(p);
+    }
+    if (std::getenv("BB_MESHER_DEBUG"))
+      std::fprintf(stderr, "reference: %zu vertices, %zu on the skin\n", reference.positions.size(),
+                   reference_points.size());
     if (reference_points.size() > size_t(options.error_samples)) {
       std::mt19937 rng(7);
       std::shuffle(reference_points.begin(), reference_points.end(), rng);
@@ -1105,7 +1101,7 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
         auto it = tagged.find(position_key(joined->positions[i]));
         frozen[i] = it != tagged.end() && *it->second == joined->positions[i];
       }
-      size_t added = fit_creases(*joined, *m.whole, d.crease_tolerance * m.height, 0.012f * m.height,
+      size_t added = detail::fit_creases(*joined, *m.whole, d.crease_tolerance * m.height, 0.012f * m.height,
                                  0.002f * m.height, d.crease_passes, frozen);
       if (std::getenv("BB_MESHER_DEBUG")) std::fprintf(stderr, "lod %zu: refined, %zu vertices added\n", level, added);
       g_times.refining += since(t0);
@@ -1243,6 +1239,15 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
       }
       std::vector<double> d1(pts.size()), d2(reference_points.size());
       distances_to_mesh(reference.positions, reference.indices, pts, d1);
+      // Where the reference bridges a gap narrower than its voxel (between fingers), the
+      // distance to it overstates the error: a skin point reached from the sample by Newton
+      // along the gradient bounds the distance from above.
+      for (size_t i = 0; i < pts.size(); ++i) {
+        if (d1[i] < 1e-3 * m.height) continue;
+        glm::vec3 y = m.whole->project(pts[i], float(d1[i]), 20), g;
+        float f = m.whole->field_gradient(y, &g) - modeler::kIso;
+        if (std::abs(f) <= 1e-5f * glm::length(g)) d1[i] = std::min(d1[i], double(glm::distance(pts[i], y)));
+      }
       distances_to_mesh(mesh.positions, mesh.indices, reference_points, d2);
       double h1 = *std::max_element(d1.begin(), d1.end()), h2 = *std::max_element(d2.begin(), d2.end());
       r.hausdorff_m = std::max(h1, h2);
@@ -1253,17 +1258,22 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
       // Extremities: mesh samples on extremity triangles, reference points beyond a seam plane
       // and near that extremity's centre.
       double he = 0;
+      glm::vec3 he_at(0);
+      const char* he_dir = "";
       for (size_t i = 0; i < pts.size(); ++i)
-        if (pts_ext[i]) he = std::max(he, d1[i]);
+        if (pts_ext[i] && d1[i] > he) he = d1[i], he_at = pts[i], he_dir = "mesh->skin";
       for (size_t i = 0; i < reference_points.size(); ++i)
         for (const PieceSpec& ps : m.pieces) {
           const glm::vec3& q = reference_points[i];
           if (glm::dot(q - ps.seam_frame.c, ps.seam_frame.t) > 0.01f * m.height / 1.75f &&
               glm::distance(q, ps.cup_center) < 0.25f * m.height / 1.75f) {
-            he = std::max(he, d2[i]);
+            if (d2[i] > he) he = d2[i], he_at = q, he_dir = "skin->mesh";
             break;
           }
         }
+      if (std::getenv("BB_MESHER_DEBUG"))
+        std::fprintf(stderr, "lod %zu: extremity max %.4f (%s) at (%.3f %.3f %.3f), skin distance there %.4f\n", level, he,
+                     he_dir, he_at.x, he_at.y, he_at.z, distance_to_skin(*m.whole, he_at));
       r.extremity_hausdorff_m = he;
       if (std::getenv("BB_MESHER_DEBUG")) {
         size_t i1 = std::max_element(d1.begin(), d1.end()) - d1.begin();

@@ -62,19 +62,22 @@ struct LodDensity {
 struct MesherOptions {
   // Levels, finest first. Empty: the default chain (default_lod_chain()).
   std::vector<LodDensity> lods;
-  // OpenVDB voxel edge, metres, for the head/feet and (finer) for the hands.
-  float vdb_voxel_m = 0.004f;
-  float vdb_hand_voxel_m = 0.002f;
+  // OpenVDB voxel edge, metres on a 1.75 m body (scaled with the height), for the head/feet and
+  // (finer) for the hands.
+  float vdb_voxel_m = 0.006f;
+  float vdb_hand_voxel_m = 0.003f;
   // Error report (LodReport): points sampled on the implicit surface and on each mesh; 0 skips
   // the distances (report left at 0) but still checks closed/manifold/self-intersections.
   int error_samples = 20000;
   bool check_topology = true;  // CGAL checks per LOD (self-intersection test is the costly one)
 };
 
-// The default chain, 4 levels (default body, measured): LOD 0 has ~8,600 contour triangles
-// plus the full-resolution OpenVDB head, hands and feet (~46,000 triangles, within 0.21 % of the
-// height; decimation brings them down), then contour-only levels of ~4,600, ~2,000 and ~700
-// triangles with star-shaped cups for the extremities.
+// The default chain, 4 levels (default body, measured): LOD 0 has ~9,300 contour triangles
+// (crease fitting at 0.15 % of the height included) plus the full-resolution OpenVDB head, hands
+// and feet (~46,000 triangles; decimation brings them down), within 0.15 % of the height
+// (0.15-0.29 % on random variants), extremities within 0.15 %; then contour-only levels of
+// ~4,600, ~2,000 and ~690 triangles with star-shaped cups for the extremities, the coarsest
+// within 2.3 % (2.4-2.8 % on variants; the toes and the groin).
 std::vector<LodDensity> default_lod_chain();
 
 // Samples the body's skin in its bind posture (body.sample_posture) into one skinned mesh per
