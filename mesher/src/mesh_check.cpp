@@ -197,9 +197,11 @@ std::vector<uint32_t> intersecting_triangles(std::span<const glm::vec3> position
             return;
   };
   std::unordered_map<uint64_t, char> occupied;
+  glm::vec3 all_lo(std::numeric_limits<float>::max()), all_hi(-std::numeric_limits<float>::max());
   for (uint32_t t : subset) {
     glm::vec3 lo, hi;
     box_of(t, &lo, &hi);
+    all_lo = glm::min(all_lo, lo), all_hi = glm::max(all_hi, hi);
     cells(lo, hi, [&](uint64_t k) { occupied[k] = 1; return false; });
   }
   std::vector<std::array<Point, 3>> tris(nt);
@@ -208,6 +210,7 @@ std::vector<uint32_t> intersecting_triangles(std::span<const glm::vec3> position
   for (size_t t = 0; t < nt; ++t) {
     glm::vec3 lo, hi;
     box_of(t, &lo, &hi);
+    if (glm::any(glm::lessThan(hi, all_lo)) || glm::any(glm::greaterThan(lo, all_hi))) continue;
     bool near = false;
     cells(lo, hi, [&](uint64_t k) { return near = occupied.count(k) > 0; });
     if (!near) continue;
