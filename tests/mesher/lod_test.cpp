@@ -23,9 +23,11 @@ void print(const std::string& name, const std::vector<Lod>& lods) {
                 r.manifold, r.oriented, r.self_intersection_count, 1000 * r.seconds);
   }
   const StageTimes& t = last_stage_times();
-  std::printf(" stages ms: field %.1f contours %.1f extremities %.1f joining %.1f skinning %.1f checks %.1f errors %.1f\n",
-              1000 * t.field, 1000 * t.contours, 1000 * t.extremities, 1000 * t.joining, 1000 * t.skinning,
-              1000 * t.checks, 1000 * t.errors);
+  std::printf(
+      " stages ms: field %.1f contours %.1f extremities %.1f joining %.1f refining %.1f skinning %.1f checks %.1f "
+      "errors %.1f\n",
+      1000 * t.field, 1000 * t.contours, 1000 * t.extremities, 1000 * t.joining, 1000 * t.refining, 1000 * t.skinning,
+      1000 * t.checks, 1000 * t.errors);
 }
 
 void expect_valid(const std::vector<Lod>& lods) {
