@@ -93,9 +93,9 @@ Result<PlainMesh> mesh_union(const std::vector<PlainMesh>& pieces);
 //     vertex put on the skin (at most half the edge's length away); a triangle with split edges
 //     becomes 2, 3 or 4 triangles in its own orientation;
 //  3. guard: the vertices of triangles that now intersect another triangle go half-way back to
-//     their chord positions (on the unfitted surface), round after round; after 12 rounds all
-//     go back. The chord surface is the joined mesh itself, free of self-intersections, so the
-//     result is too.
+//     their chord positions (on the unfitted surface), round after round, then all the way back;
+//     the last resort puts every vertex back. The chord surface is the joined mesh itself, free
+//     of self-intersections, so the result is too.
 // Edges with both ends in `frozen` are kept (extremities, seam rings); frozen vertices stay.
 // Returns the number of vertices added.
 size_t fit_creases(PlainMesh& m, const SubField& skin, float tol, float max_move, float min_edge, int passes,

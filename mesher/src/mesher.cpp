@@ -274,7 +274,7 @@ void cast_cup(const SubField& field, const PieceSpec& spec, const Frame& seam, c
   // Meridians: `points` of them (at least the rim's), starting from the rim polyline at
   // angles 2 pi k / points.
   const size_t n_rim = rim.ids.size(), n = std::max<size_t>(n_rim, size_t(points));
-  std::vector<glm::vec3> start(n), d0(n);
+  std::vector<glm::vec3> start(n), d0(n), out(n);
   std::vector<float> angles(n);
   for (size_t k = 0; k < n; ++k) {
     float a = float(k) / float(n) * float(n_rim);
@@ -282,6 +282,13 @@ void cast_cup(const SubField& field, const PieceSpec& spec, const Frame& seam, c
     float f = a - std::floor(a);
     start[k] = (1 - f) * mesh.positions[rim.ids[k0]] + f * mesh.positions[rim.ids[k1]];
     d0[k] = glm::normalize(start[k] - c);
+    // The meridian's way down: through the rim point's outward direction (from the limb's axis,
+    // square to the pole), so that it sweeps the side of the cup the rim point is on. (Going
+    // straight from d0 to the pole is ill-defined when the rim point lies right above the cup
+    // centre, as the front of a slim shin can: the meridian then swept the heel, not the toes.)
+    glm::vec3 r = start[k] - seam.c;
+    r -= glm::dot(r, pole) * pole;
+    out[k] = glm::dot(r, r) > 1e-12f ? glm::normalize(r) : d0[k];
     angles[k] = glm::two_pi<float>() * float(k) / float(n);
   }
   auto slerp = [](glm::vec3 a, glm::vec3 b, float s) {
@@ -295,7 +302,11 @@ void cast_cup(const SubField& field, const PieceSpec& spec, const Frame& seam, c
     return glm::normalize((std::sin((1 - s) * ang) * a + std::sin(s * ang) * b) / std::sin(ang));
   };
   auto cast = [&](size_t k, float s) {
-    glm::vec3 d = slerp(d0[k], pole, s);
+    // d0 -> out -> pole, s proportional to the angle travelled.
+    float a1 = std::acos(glm::clamp(glm::dot(d0[k], out[k]), -1.0f, 1.0f));
+    float a2 = std::acos(glm::clamp(glm::dot(out[k], pole), -1.0f, 1.0f));
+    float s1 = a1 + a2 > 0 ? a1 / (a1 + a2) : 0.0f;
+    glm::vec3 d = s < s1 ? slerp(d0[k], out[k], s / s1) : slerp(out[k], pole, s1 < 1 ? (s - s1) / (1 - s1) : 1.0f);
     // Only the part of the ray beyond the seam plane counts.
     float dn = glm::dot(d, seam.t), max_t = 1.0f;
     float sc = glm::dot(c - seam.c, seam.t);
@@ -913,7 +924,10 @@ size_t detail::fit_creases(PlainMesh& m, const SubField& skin, float tol, float 
   }
   // Guard: only triangles with a moved vertex can take part in an intersection.
   const size_t nt = m.indices.size() / 3;
-  for (int round = 0; round < 12; ++round) {
+  // Rounds that take vertices half-way back, then rounds that take them all the way back; the
+  // last resort puts every vertex back on the chord surface.
+  const int kPartial = 10, kRounds = 40;
+  for (int round = 0; round < kRounds; ++round) {
     std::vector<uint32_t> moved;
     for (size_t t = 0; t < nt; ++t) {
       const uint32_t* v = &m.indices[3 * t];
@@ -921,16 +935,23 @@ size_t detail::fit_creases(PlainMesh& m, const SubField& skin, float tol, float 
         moved.push_back(uint32_t(t));
     }
     std::vector<uint32_t> bad = intersecting_triangles(m.positions, m.indices, moved);
+    if (std::getenv("BB_MESHER_DEBUG") && !bad.empty()) {
+      glm::vec3 p = m.positions[m.indices[3 * bad[0]]];
+      std::fprintf(stderr, "fit guard round %d: %zu of %zu moved triangles intersect, e.g. at (%.3f %.3f %.3f)\n", round,
+                   bad.size(), moved.size(), p.x, p.y, p.z);
+    }
     if (bad.empty()) break;
-    if (round == 11) {
+    if (round == kRounds - 1) {
       m.positions = chord;
       break;
     }
+    // First back part of the way, then (vertices of triangles still intersecting) all the way.
+    const float keep = round < kPartial ? 0.5f : 0.0f;
     std::vector<char> done(m.positions.size(), 0);
     for (uint32_t t : bad)
       for (int k = 0; k < 3; ++k) {
         uint32_t v = m.indices[3 * t + k];
-        if (!done[v]) m.positions[v] = chord[v] + 0.5f * (m.positions[v] - chord[v]), done[v] = 1;
+        if (!done[v]) m.positions[v] = chord[v] + keep * (m.positions[v] - chord[v]), done[v] = 1;
       }
   }
   return m.positions.size() - n0;

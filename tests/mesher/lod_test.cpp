@@ -1,6 +1,7 @@
 // Every default level of the default body and of random variants: closed, manifold, oriented,
 // no self-intersections, one component, normalized weights with at most 4 influences, seams
 // without cracks, errors within the targets.
+#include <algorithm>
 #include <cstdio>
 #include <set>
 
@@ -132,6 +133,32 @@ TEST(BuildLods, RandomVariantsAreClean) {
     print(v.name, *lods);
     expect_valid(*lods);
     expect_on_target(*lods);
+  }
+}
+
+// Variant 7 has a slim shin: the front point of the ankle ring lies right above the foot cup's
+// centre. The cup's front meridian used to go from there over the heel instead of down the
+// instep, and the coarse levels lost their toes (11 % of the height, self-intersections). Every
+// level's feet must reach as far forward as the full-resolution OpenVDB feet.
+TEST(BuildLods, SlimShinVariantKeepsItsToes) {
+  modeler::BodyShape shape;
+  shape.seed = 7;
+  modeler::Body v = modeler::make_variant(modeler::default_body(), shape, "_v7");
+  MesherOptions o;
+  o.error_samples = 0;
+  auto lods = build_lods(v, o);
+  ASSERT_TRUE(lods.ok()) << lods.error().message();
+  expect_valid(*lods);
+  auto reach = [](const SkinnedMesh& m, MeshPart foot) {
+    float z = -1;
+    for (size_t i = 0; i < m.positions.size(); ++i)
+      if (m.part[i] == uint8_t(foot)) z = std::max(z, m.positions[i].z);
+    return z;
+  };
+  for (MeshPart foot : {MeshPart::kLeftFoot, MeshPart::kRightFoot}) {
+    float full = reach(lods->front().mesh, foot);
+    for (size_t i = 1; i < lods->size(); ++i)
+      EXPECT_GT(reach((*lods)[i].mesh, foot), full - 0.04f) << "lod " << i << " foot " << int(foot);
   }
 }
 
