@@ -92,8 +92,9 @@ Result<PlainMesh> mesh_union(const std::vector<PlainMesh>& pieces);
 //  2. up to `passes` times, every edge whose midpoint is farther than `tol` is split and the new
 //     vertex put on the skin (at most half the edge's length away); a triangle with split edges
 //     becomes 2, 3 or 4 triangles in its own orientation;
-//  3. guard: the vertices of triangles that now intersect another triangle go half-way back to
-//     their chord positions (on the unfitted surface), round after round, then all the way back;
+//  3. guard: the most displaced vertex of each triangle that now intersects another goes
+//     half-way back to its chord position (on the unfitted surface), round after round, then all
+//     the triangle's vertices go all the way back;
 //     the last resort puts every vertex back. The chord surface is the joined mesh itself, free
 //     of self-intersections, so the result is too.
 // Edges with both ends in `frozen` are kept (extremities, seam rings); frozen vertices stay.

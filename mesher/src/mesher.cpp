@@ -948,11 +948,22 @@ size_t detail::fit_creases(PlainMesh& m, const SubField& skin, float tol, float 
     // First back part of the way, then (vertices of triangles still intersecting) all the way.
     const float keep = round < kPartial ? 0.5f : 0.0f;
     std::vector<char> done(m.positions.size(), 0);
-    for (uint32_t t : bad)
+    // Partial rounds take back only the most displaced vertex of each intersecting triangle.
+    const bool one = round < kPartial;
+    for (uint32_t t : bad) {
+      int kmax = 0;
+      float dmax = -1;
       for (int k = 0; k < 3; ++k) {
+        uint32_t v = m.indices[3 * t + k];
+        float dd = glm::distance(m.positions[v], chord[v]);
+        if (dd > dmax) dmax = dd, kmax = k;
+      }
+      for (int k = 0; k < 3; ++k) {
+        if (one && k != kmax) continue;
         uint32_t v = m.indices[3 * t + k];
         if (!done[v]) m.positions[v] = chord[v] + keep * (m.positions[v] - chord[v]), done[v] = 1;
       }
+    }
   }
   return m.positions.size() - n0;
 }
