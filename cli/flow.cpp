@@ -1,6 +1,7 @@
 // bodybuilder flow: the paper's human flow test bed (section 6) with its two experiments.
 #include "flow.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -46,6 +47,15 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["psnr_db"] = r.psnr_db;
   j["psnr_min_db"] = r.psnr_min_db;
   j["ssim"] = r.ssim;
+  j["psnr_stored_db"] = r.psnr_stored_db;
+  if (s.impostor_edges != "blend") j["impostor_edges"] = s.impostor_edges;
+  if (!s.snapshot_lod_from_screen) j["snapshot_lod"] = "window";
+  if (!s.perspective_snapshots) j["snapshot_camera"] = "orthographic";
+  if (s.hold_poses) j["hold_poses"] = true;
+  auto split = [](const FlowResult::ErrorClass& c) {
+    return ordered_json{{"mse", c.mse}, {"pixels", c.pixels}, {"share", c.share}};
+  };
+  j["error_split"] = {{"interior", split(r.interior)}, {"edge", split(r.edge)}, {"one_only", split(r.one_only)}};
   j["geometry_triangles_per_frame"] = r.geometry_triangles;
   j["snapshot_triangles_per_frame"] = r.snapshot_triangles;
   j["atlas_pages_used"] = r.atlas_pages;
@@ -61,12 +71,13 @@ std::vector<unsigned char> side_by_side(const FlowFrameImages& im, int w, int h)
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x)
       for (int k = 0; k < 4; ++k) {
-        // Over a light grey background so that the PNG reads well in any viewer.
+        // Over a light grey background so that the PNG reads well in any viewer. The frames are
+        // premultiplied (a multisampled edge pixel holds colour x coverage).
         auto over = [&](const std::vector<unsigned char>& src) -> unsigned char {
           const unsigned char* p = &src[(static_cast<size_t>(y) * w + x) * 4];
           if (k == 3) return 255;
           double a = p[3] / 255.0;
-          return static_cast<unsigned char>(p[k] * a + 235 * (1 - a) + 0.5);
+          return static_cast<unsigned char>(std::min(255.0, p[k] + 235 * (1 - a) + 0.5));
         };
         out[(static_cast<size_t>(y) * 2 * w + x) * 4 + k] = im.impostor.empty() ? 0 : over(im.impostor);
         out[(static_cast<size_t>(y) * 2 * w + w + x) * 4 + k] = im.geometry.empty() ? 0 : over(im.geometry);
@@ -108,6 +119,17 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (!a.sweep.empty() && a.sweep != "posture" && a.sweep != "view")
     return fail("--sweep: expected posture or view (got \"" + a.sweep + "\")");
   if (!a.sweep.empty() && a.mode != "both") return fail("--sweep needs --mode both");
+  if (a.impostor_edges != "samples" && a.impostor_edges != "coverage" && a.impostor_edges != "test" &&
+      a.impostor_edges != "blend")
+    return fail("--impostor-edges: expected samples, coverage, test or blend (got \"" + a.impostor_edges + "\")");
+  if (a.snapshot_lod != "screen" && a.snapshot_lod != "window")
+    return fail("--snapshot-lod: expected screen or window (got \"" + a.snapshot_lod + "\")");
+  if (a.snapshot_camera != "perspective" && a.snapshot_camera != "orthographic")
+    return fail("--snapshot-camera: expected perspective or orthographic (got \"" + a.snapshot_camera + "\")");
+  s.impostor_edges = a.impostor_edges;
+  s.snapshot_lod_from_screen = a.snapshot_lod == "screen";
+  s.perspective_snapshots = a.snapshot_camera == "perspective";
+  s.hold_poses = a.hold_poses;
   s.distance_weighting = a.distance_weighting;
   s.orbit_deg_per_s = a.orbit;
   s.msaa = a.msaa;
@@ -282,6 +304,15 @@ void add_flow_command(CLI::App& app, int* status) {
       ->capture_default_str()->check(CLI::IsMember({1, 2, 4, 8}));
   cmd->add_option("--texels-per-pixel", a->texels_per_pixel, "Impostor window texels per screen pixel")
       ->capture_default_str()->check(CLI::Range(0.25, 4.0));
+  cmd->add_option("--impostor-edges", a->impostor_edges,
+                  "Impostor edges: blend (sorted, soft), samples (coverage per sample), coverage (alpha to coverage) or test")
+      ->capture_default_str();
+  cmd->add_option("--snapshot-lod", a->snapshot_lod,
+                  "Snapshot mesh LOD: screen (what geometry would draw) or window (matches the window size)")
+      ->capture_default_str();
+  cmd->add_option("--snapshot-camera", a->snapshot_camera, "Snapshot camera: perspective (from the eye) or orthographic")
+      ->capture_default_str();
+  cmd->add_flag("--hold-poses", a->hold_poses, "Every human keeps one pose while walking (isolates the pose lag)");
   cmd->add_option("--sweep", a->sweep, "Sweep the posture threshold (view off) or the view threshold (posture off)");
   cmd->add_flag("--scaling", a->scaling, "Also measure both paths from 20 to 10,000 humans");
   cmd->add_option("--scaling-humans", a->scaling_list, "Crowd sizes of --scaling")->capture_default_str();

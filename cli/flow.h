@@ -34,6 +34,11 @@ struct FlowSettings {
   int quality_every = 4;         // compare images every k-th measured frame
   int msaa = 4;                  // samples per pixel of the scene window (both paths)
   float texels_per_pixel = 2.0f; // impostor windows chosen for this many texels per pixel
+  // Switches that isolate what limits image quality (the defaults are the runtime's):
+  std::string impostor_edges = "blend";  // blend (sorted), samples, coverage (alpha to coverage), test
+  bool snapshot_lod_from_screen = true;     // false: the LOD that matches the window (section 4.3)
+  bool perspective_snapshots = true;        // false: the paper's orthographic snapshot camera
+  bool hold_poses = false;                  // every human keeps one pose (no pose lag)
   int clip = -1;                 // -1: a clip named like "walk" if any, else 0
   float clip_speed_mps = 0;      // speed the clip walks at; 0: from the clip name "..._1.20mps" or none
   std::vector<int> keep_frames;  // measured frame indices whose images are returned
@@ -51,6 +56,15 @@ struct FlowResult {
   double refresh_fraction = 0;              // mean snapshots / impostors
   double psnr_db = 0, ssim = 0;             // means over compared frames
   double psnr_min_db = 0;
+  // PSNR of the RGB as the frames store it (premultiplied by coverage, both paths), over the same
+  // pixels; psnr_db weights it by alpha once more, so coverage differences at edges count more.
+  double psnr_stored_db = 0;
+  // Where the squared error comes from, over the compared frames (premultiplied RGB as in
+  // psnr_db): pixels covered in both images, pixels partly covered in at least one (edges), and
+  // pixels covered in one image only. mse per channel, pixels per frame.
+  struct ErrorClass {
+    double mse = 0, pixels = 0, share = 0;
+  } interior, edge, one_only;
   double geometry_triangles = 0, snapshot_triangles = 0;  // mean per frame
   double atlas_pixel_use = 0;
   int atlas_pages = 0;
@@ -69,6 +83,8 @@ struct FlowArgs {
   float orbit = 0;
   int msaa = 4;
   float texels_per_pixel = 2.0f;
+  std::string impostor_edges = "blend", snapshot_lod = "screen", snapshot_camera = "perspective";
+  bool hold_poses = false;
   bool quiet = false;  // no summary on stdout (the demo prints its own)
   std::string scaling_list = "20,100,500,1000,2000,5000,10000";
   int scaling_frames = 10;

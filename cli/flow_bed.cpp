@@ -57,6 +57,13 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   config.cache.view_threshold_deg = s.view_deg;
   config.cache.distance_weighting = s.distance_weighting;
   config.texels_per_pixel = s.texels_per_pixel;
+  config.snapshot_lod_from_screen = s.snapshot_lod_from_screen;
+  config.perspective_snapshots = s.perspective_snapshots;
+  DrawOptions draw_options;
+  draw_options.edges = s.impostor_edges == "coverage"  ? ImpostorEdges::kAlphaToCoverage
+                       : s.impostor_edges == "test"    ? ImpostorEdges::kAlphaTest
+                       : s.impostor_edges == "samples" ? ImpostorEdges::kSamples
+                                                       : ImpostorEdges::kBlend;
   // Enough atlas for the crowd: windows of 256 px, 16 per 1024 page.
   config.max_pages = std::clamp(s.humans / 8 + 4, 8, 64);
   auto renderer = Renderer::create(model, config);
@@ -92,7 +99,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
     Character c;
     c.clip = clip;
     c.phase = 0.7f * i;
-    c.speed = clip_speed > 0 ? w.speed / (clip_speed * unit) : 1.0f;
+    c.speed = s.hold_poses ? 0.0f : clip_speed > 0 ? w.speed / (clip_speed * unit) : 1.0f;
     crowd.add(c);
   }
   float outer = walkers.empty() ? 2.0f : (2.0f + 1.6f * (rings - 1)) * unit + size;
@@ -109,6 +116,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   double g_ms = 0, i_ms = 0, refresh = 0, psnr_sum = 0, ssim_sum = 0, tri_g = 0, tri_s = 0, atlas_use = 0;
   double psnr_min = std::numeric_limits<double>::infinity();
   int compared = 0, atlas_pages = 0;
+  double class_se[3] = {0, 0, 0}, class_n[3] = {0, 0, 0}, se_stored = 0;
   const int total = s.warmup + s.frames;
   for (int f = 0; f < total; ++f) {
     float t = f / s.fps;
@@ -135,7 +143,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
       gpu_finish();
       auto t0 = Clock::now();
       const FramePlan& plan = planner.plan(crowd, cam, t, mode);
-      (*renderer)->draw(plan);
+      (*renderer)->draw(plan, draw_options);
       gpu_finish();
       *ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
       return plan;
@@ -161,6 +169,25 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
       if (compare || keep) imgs.impostor = (*target_i)->read_rgba();
     }
     if (compare) {
+      // Where the error is: interior, edges (partly covered), covered in one image only.
+      const auto& ga = imgs.geometry;
+      const auto& ia = imgs.impostor;
+      for (size_t i = 0; i < static_cast<size_t>(s.width) * s.height; ++i) {
+        const unsigned char* p = &ga[4 * i];
+        const unsigned char* q = &ia[4 * i];
+        if (p[3] == 0 && q[3] == 0) continue;
+        double e = 0;
+        for (int k = 0; k < 3; ++k) {
+          double x = p[k] * (p[3] / 255.0), y = q[k] * (q[3] / 255.0);
+          e += (x - y) * (x - y);
+          se_stored += (p[k] - q[k]) * (p[k] - q[k]);
+        }
+        int c = (p[3] == 255 && q[3] == 255) ? 0 : (p[3] == 0 || q[3] == 0) ? 2 : 1;
+        class_se[c] += e;
+        class_n[c] += 1;
+      }
+    }
+    if (compare) {
       double p = psnr_covered(imgs.geometry.data(), imgs.impostor.data(), s.width, s.height);
       double q = ssim_covered(imgs.geometry.data(), imgs.impostor.data(), s.width, s.height);
       if (std::isinf(p)) p = 99.0;
@@ -179,6 +206,15 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   out.psnr_db = compared ? psnr_sum / compared : 0;
   out.psnr_min_db = compared ? psnr_min : 0;
   out.ssim = compared ? ssim_sum / compared : 0;
+  const double se_all = class_se[0] + class_se[1] + class_se[2];
+  FlowResult::ErrorClass* classes[3] = {&out.interior, &out.edge, &out.one_only};
+  for (int c = 0; c < 3; ++c) {
+    classes[c]->mse = class_n[c] > 0 ? class_se[c] / (3.0 * class_n[c]) : 0.0;
+    classes[c]->pixels = compared ? class_n[c] / compared : 0.0;
+    classes[c]->share = se_all > 0 ? class_se[c] / se_all : 0.0;
+  }
+  const double n_all = class_n[0] + class_n[1] + class_n[2];
+  out.psnr_stored_db = n_all > 0 && se_stored > 0 ? 10.0 * std::log10(255.0 * 255.0 * 3.0 * n_all / se_stored) : 99.0;
   out.geometry_triangles = tri_g / n;
   out.snapshot_triangles = tri_s / n;
   out.atlas_pixel_use = atlas_use / n;

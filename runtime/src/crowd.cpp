@@ -162,6 +162,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
           cs.posture = posture;
           cs.half_size = sc.half_size;
           cs.rect = glm::vec4(-1, -1, 1, 1);
+          glm::vec4 snap_rect = cs.rect;
           if (config_.tight_quads) {
             // Project the corners of this frame's pose box on the snapshot plane (window units).
             const auto& b0 = bc.bounds[f0];
@@ -177,11 +178,13 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
               rmin = glm::min(rmin, q);
               rmax = glm::max(rmax, q);
             }
-            // Whole texels, one texel of margin, inside the window.
+            // Whole texels, one texel of margin, inside the window: the quad. The snapshot clears
+            // three texels more, which the impostor shader's taps at the quad's border reach
+            // (else they would read what an earlier snapshot left there).
             const float texel = 2.0f / static_cast<float>(win.size);
-            rmin = glm::clamp(glm::floor(rmin / texel - 1.0f) * texel, -1.0f, 1.0f);
-            rmax = glm::clamp(glm::ceil(rmax / texel + 1.0f) * texel, -1.0f, 1.0f);
-            cs.rect = glm::vec4(rmin, rmax);
+            const glm::vec2 t0 = glm::floor(rmin / texel), t1 = glm::ceil(rmax / texel);
+            cs.rect = glm::vec4(glm::clamp((t0 - 1.0f) * texel, -1.0f, 1.0f), glm::clamp((t1 + 1.0f) * texel, -1.0f, 1.0f));
+            snap_rect = glm::vec4(glm::clamp((t0 - 4.0f) * texel, -1.0f, 1.0f), glm::clamp((t1 + 4.0f) * texel, -1.0f, 1.0f));
           }
           SnapshotGpu s;
           s.instance = inst;
@@ -192,7 +195,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
           const float half = static_cast<float>(win.size) / page;  // NDC half extent = size / page
           s.window = glm::vec4(-1.0f + (2.0f * win.x + win.size) / page, -1.0f + (2.0f * win.y + win.size) / page, half,
                                static_cast<float>(win.page));
-          s.rect = cs.rect;
+          s.rect = snap_rect;
           const int slod = config_.snapshot_lod_from_screen ? std::min(lod_for(pixels, camera.height), lods - 1)
                                                             : window_lod[win.size_class];
           plan_.snapshots[slod].push_back(s);

@@ -6,7 +6,9 @@
 #include <cstddef>
 #include <cstdlib>
 #include <cstring>
+#include <cstdio>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <glm/gtc/type_ptr.hpp>
@@ -153,31 +155,51 @@ void main() {
 )";
 
 // The window holds the snapshot at about 2 texels per screen pixel (ImpostorConfig::
-// texels_per_pixel), premultiplied. Four bilinear taps at the positions of the standard 4x
-// multisample pattern (from the screen-space derivatives of the texture coordinates) average the
-// pixel's footprint, so the alpha is the pixel's coverage and the colour its mean, as in a
-// multisampled geometry frame.
+// texels_per_pixel), premultiplied. Taps placed from the screen-space derivatives of the texture
+// coordinates look the window up inside the pixel: at the framebuffer's own sample positions
+// (BB_PER_SAMPLE: each sample covered where the window is at least half covered), or at the
+// standard 4x pattern, averaged (coverage as alpha).
 const char* kBillboardFs = R"(#version 450 core
 layout(binding = 2) uniform sampler2DArray u_atlas;
-uniform int u_blend;  // 0: alpha test, 1: premultiplied blending, 2: alpha to coverage
+uniform int u_edges;  // 0: alpha test, 1: premultiplied blending, 2: alpha to coverage
+uniform int u_samples;
+uniform vec2 u_sample_pos[16];  // offsets from the pixel centre, pixels
 in vec3 v_uvl;
 layout(location = 0) out vec4 o_color;
 vec4 tap(vec2 uv) { return texture(u_atlas, vec3(uv, v_uvl.z)); }
 void main() {
   vec2 dx = dFdx(v_uvl.xy), dy = dFdy(v_uvl.xy);
+#ifdef BB_PER_SAMPLE
+  {
+    int mask = 0;
+    vec4 sum = vec4(0.0);
+    for (int k = 0; k < u_samples; ++k) {
+      vec4 t = tap(v_uvl.xy + u_sample_pos[k].x * dx + u_sample_pos[k].y * dy);
+      if (t.a >= 0.5) {
+        mask |= 1 << k;
+        sum += t;
+      }
+    }
+    if (mask == 0) discard;
+    gl_SampleMask[0] = mask;
+    o_color = vec4(sum.rgb / sum.a, 1.0);
+  }
+#else
   vec4 c = 0.25 * (tap(v_uvl.xy - 0.125 * dx - 0.375 * dy) + tap(v_uvl.xy + 0.375 * dx - 0.125 * dy) +
                    tap(v_uvl.xy - 0.375 * dx + 0.125 * dy) + tap(v_uvl.xy + 0.125 * dx + 0.375 * dy));
-  if (u_blend == 0) {
+  if (u_edges == 0) {
     if (c.a < 0.5) discard;
     o_color = vec4(c.rgb / c.a, 1.0);
-  } else if (u_blend == 2) {
-    // The alpha picks the share of the pixel's samples, so the colour goes in straight.
+  } else if (u_edges == 2) {
+    // The alpha picks the share of the pixel's samples, so the colour goes in straight (and
+    // alpha to one makes the covered samples opaque).
     if (c.a < 1.0 / 255.0) discard;
     o_color = vec4(c.rgb / c.a, c.a);
   } else {
     if (c.a < 1.0 / 255.0) discard;
     o_color = c;
   }
+#endif
 }
 )";
 
@@ -263,7 +285,7 @@ struct Renderer::Impl {
   std::vector<GLuint> textures;  // per model texture
   GLuint white = 0;
   GLuint palette_buffer = 0, palette_texture = 0;
-  GLuint prog_geometry = 0, prog_snapshot = 0, prog_clear = 0, prog_billboard = 0;
+  GLuint prog_geometry = 0, prog_snapshot = 0, prog_clear = 0, prog_billboard = 0, prog_billboard_samples = 0;
   GLint loc_geometry_viewproj = -1;
   GLuint atlas = 0, atlas_depth = 0, atlas_fbo = 0;
   bool layered = false;  // one snapshot pass for all pages (depth is then a texture array too)
@@ -272,6 +294,8 @@ struct Renderer::Impl {
   StreamBuffer instances, snapshots, billboards;
   std::vector<InstanceGpu> instance_scratch;
   std::vector<SnapshotGpu> snapshot_scratch;
+  std::vector<std::pair<float, std::uint32_t>> billboard_order;  // blending: (-depth, index)
+  std::vector<BillboardGpu> billboard_scratch;
   struct Due {
     std::int32_t lod, page, index;  // index into the plan's list of that lod
   };
@@ -282,7 +306,11 @@ struct Renderer::Impl {
   struct ShadeLocations {
     GLint color = -1, cutoff = -1;
   } shade_geometry, shade_snapshot;
-  GLint loc_bb_viewproj = -1, loc_bb_eye = -1, loc_bb_up = -1, loc_bb_blend = -1;
+  struct BillboardProgram {
+    GLuint prog = 0;
+    GLint viewproj = -1, eye = -1, up = -1, edges = -1, samples = -1, sample_pos = -1;
+  } bb, bb_samples;  // averaged taps; per-sample coverage
+  int sample_count = 0;  // of the sample positions last given to the impostor shader
 
   void set_material(GLuint prog, const Material& m) {
     const ShadeLocations& l = prog == prog_geometry ? shade_geometry : shade_snapshot;
@@ -390,6 +418,20 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   auto pb = program(kBillboardVs, kBillboardFs, "impostor shader");
   if (!pb) return pb.error();
   d.prog_billboard = *pb;
+  std::string per_sample = kBillboardFs;
+  per_sample.insert(per_sample.find('\n') + 1, "#define BB_PER_SAMPLE 1\n");
+  auto pbs = program(kBillboardVs, per_sample, "impostor shader (per sample)");
+  if (!pbs) return pbs.error();
+  d.prog_billboard_samples = *pbs;
+  for (auto [prog, bp] : {std::pair{d.prog_billboard, &d.bb}, std::pair{d.prog_billboard_samples, &d.bb_samples}}) {
+    *bp = {prog,
+           glGetUniformLocation(prog, "u_viewproj"),
+           glGetUniformLocation(prog, "u_eye"),
+           glGetUniformLocation(prog, "u_up"),
+           glGetUniformLocation(prog, "u_edges"),
+           glGetUniformLocation(prog, "u_samples"),
+           glGetUniformLocation(prog, "u_sample_pos")};
+  }
   const GLint psize = static_cast<GLint>(model.palette.size());
   glProgramUniform1i(d.prog_geometry, glGetUniformLocation(d.prog_geometry, "u_palette_size"), psize);
   glProgramUniform1i(d.prog_snapshot, glGetUniformLocation(d.prog_snapshot, "u_palette_size"), psize);
@@ -398,10 +440,6 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   d.loc_geometry_viewproj = glGetUniformLocation(d.prog_geometry, "u_viewproj");
   d.shade_geometry = {glGetUniformLocation(d.prog_geometry, "u_color"), glGetUniformLocation(d.prog_geometry, "u_cutoff")};
   d.shade_snapshot = {glGetUniformLocation(d.prog_snapshot, "u_color"), glGetUniformLocation(d.prog_snapshot, "u_cutoff")};
-  d.loc_bb_viewproj = glGetUniformLocation(d.prog_billboard, "u_viewproj");
-  d.loc_bb_eye = glGetUniformLocation(d.prog_billboard, "u_eye");
-  d.loc_bb_up = glGetUniformLocation(d.prog_billboard, "u_up");
-  d.loc_bb_blend = glGetUniformLocation(d.prog_billboard, "u_blend");
 
   // Baked clips as a texture buffer.
   const auto rows = model.baked_palette();
@@ -537,7 +575,8 @@ Renderer::~Renderer() {
   else
     glDeleteRenderbuffers(1, &d.atlas_depth);
   glDeleteFramebuffers(1, &d.atlas_fbo);
-  for (GLuint p : {d.prog_geometry, d.prog_snapshot, d.prog_clear, d.prog_billboard}) glDeleteProgram(p);
+  for (GLuint p : {d.prog_geometry, d.prog_snapshot, d.prog_clear, d.prog_billboard, d.prog_billboard_samples})
+    glDeleteProgram(p);
 }
 
 void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
@@ -575,18 +614,58 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
 
   // 3. Impostors: camera-facing quads, one instanced draw.
   if (options.draw_impostors && !plan.billboards.empty()) {
-    d.billboards.upload(plan.billboards.data(), plan.billboards.size() * sizeof(BillboardGpu));
-    glUseProgram(d.prog_billboard);
-    glProgramUniformMatrix4fv(d.prog_billboard, d.loc_bb_viewproj, 1, GL_FALSE, glm::value_ptr(viewproj));
-    glProgramUniform3fv(d.prog_billboard, d.loc_bb_eye, 1, glm::value_ptr(plan.camera.eye));
-    glProgramUniform3fv(d.prog_billboard, d.loc_bb_up, 1, glm::value_ptr(plan.camera.up));
-    glBindTextureUnit(2, d.atlas);
-    GLint sample_buffers = 0;
+    GLint sample_buffers = 0, samples = 1;
     glGetIntegerv(GL_SAMPLE_BUFFERS, &sample_buffers);
-    const bool a2c = !options.blend_impostors && options.alpha_to_coverage && sample_buffers > 0;
-    glProgramUniform1i(d.prog_billboard, d.loc_bb_blend, options.blend_impostors ? 1 : a2c ? 2 : 0);
-    if (a2c) glEnable(GL_SAMPLE_ALPHA_TO_COVERAGE);
-    if (options.blend_impostors) {
+    if (sample_buffers > 0) glGetIntegerv(GL_SAMPLES, &samples);
+    samples = std::clamp(samples, 1, 16);
+    int mode = 0;  // u_edges, or 3: the per-sample program
+    switch (options.edges) {
+      case ImpostorEdges::kSamples: mode = sample_buffers > 0 ? 3 : 0; break;
+      case ImpostorEdges::kAlphaToCoverage: mode = sample_buffers > 0 ? 2 : 0; break;
+      case ImpostorEdges::kAlphaTest: mode = 0; break;
+      case ImpostorEdges::kBlend: mode = 1; break;
+    }
+    if (mode == 1) {
+      // Blending: back to front (distance of Ta along the view direction), so that soft edges
+      // fall on what lies behind them.
+      const glm::vec3 fwd = glm::normalize(plan.camera.target - plan.camera.eye);
+      d.billboard_order.clear();
+      for (std::size_t i = 0; i < plan.billboards.size(); ++i)
+        d.billboard_order.emplace_back(-glm::dot(glm::vec3(plan.billboards[i].ta_half) - plan.camera.eye, fwd),
+                                       static_cast<std::uint32_t>(i));
+      std::sort(d.billboard_order.begin(), d.billboard_order.end());
+      d.billboard_scratch.clear();
+      for (const auto& o : d.billboard_order) d.billboard_scratch.push_back(plan.billboards[o.second]);
+      d.billboards.upload(d.billboard_scratch.data(), d.billboard_scratch.size() * sizeof(BillboardGpu));
+    } else {
+      d.billboards.upload(plan.billboards.data(), plan.billboards.size() * sizeof(BillboardGpu));
+    }
+    const Impl::BillboardProgram& bp = mode == 3 ? d.bb_samples : d.bb;
+    glUseProgram(bp.prog);
+    glProgramUniformMatrix4fv(bp.prog, bp.viewproj, 1, GL_FALSE, glm::value_ptr(viewproj));
+    glProgramUniform3fv(bp.prog, bp.eye, 1, glm::value_ptr(plan.camera.eye));
+    glProgramUniform3fv(bp.prog, bp.up, 1, glm::value_ptr(plan.camera.up));
+    glBindTextureUnit(2, d.atlas);
+    if (mode == 3 && samples != d.sample_count) {
+      // Where this framebuffer's samples lie in the pixel (GL: [0, 1]^2 from its lower left).
+      d.sample_count = samples;
+      std::array<float, 32> pos{};
+      for (int k = 0; k < samples; ++k) {
+        glGetMultisamplefv(GL_SAMPLE_POSITION, static_cast<GLuint>(k), &pos[2 * k]);
+        pos[2 * k] -= 0.5f;
+        pos[2 * k + 1] -= 0.5f;
+      }
+      glProgramUniform2fv(bp.prog, bp.sample_pos, samples, pos.data());
+      glProgramUniform1i(bp.prog, bp.samples, samples);
+    }
+    if (mode != 3) glProgramUniform1i(bp.prog, bp.edges, mode);
+    if (mode == 2) {
+      // The samples covered are wholly covered: alpha 1 in them (else the resolved pixel would
+      // carry the coverage twice, alpha below the premultiplied colour: a bright fringe).
+      glEnable(GL_SAMPLE_ALPHA_TO_COVERAGE);
+      glEnable(GL_SAMPLE_ALPHA_TO_ONE);
+    }
+    if (mode == 1) {
       glEnable(GL_BLEND);
       glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
     }
@@ -594,6 +673,7 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
     glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(plan.billboards.size()));
     glDisable(GL_BLEND);
     glDisable(GL_SAMPLE_ALPHA_TO_COVERAGE);
+    glDisable(GL_SAMPLE_ALPHA_TO_ONE);
   }
   glBindVertexArray(0);
   glUseProgram(0);

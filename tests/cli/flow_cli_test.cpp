@@ -54,6 +54,22 @@ TEST(FlowCli, WorstCaseRefreshesEveryImpostorEveryFrame) {
   ASSERT_EQ(o.status, 0) << o.text;
   auto j = nlohmann::json::parse(last_json_line(o.text));
   EXPECT_DOUBLE_EQ(j["refresh_fraction"].get<double>(), 1.0);
+  // Every impostor fresh: the frames agree closely (measured ~30 dB on llvmpipe at 1280x1024;
+  // ~19 dB before the snapshots used the geometry's LOD, 2 texels per pixel and coverage edges).
+  EXPECT_GT(j["psnr_db"].get<double>(), 22.0);
+  // The error split covers the compared pixels and its shares add up to 1.
+  const auto& e = j["error_split"];
+  EXPECT_GT(e["interior"]["pixels"].get<double>(), 0);
+  EXPECT_NEAR(e["interior"]["share"].get<double>() + e["edge"]["share"].get<double>() +
+                  e["one_only"]["share"].get<double>(),
+              1.0, 1e-9);
+  // The alpha test instead of coverage: worse edges, same refreshes.
+  Out test = run("flow --model " + model + " --frames 4 --size 320x256 --posture 0 --view 0 --impostor-edges test --json -o " +
+                 d.string());
+  ASSERT_EQ(test.status, 0) << test.text;
+  auto jt = nlohmann::json::parse(last_json_line(test.text));
+  EXPECT_EQ(jt["impostor_edges"], "test");
+  EXPECT_LT(jt["psnr_db"].get<double>(), j["psnr_db"].get<double>());
   // With both tests off nothing is refreshed after the first snapshots.
   Out off = run("flow --model " + model + " --frames 4 --size 320x256 --posture off --view off --json -o " + d.string());
   ASSERT_EQ(off.status, 0) << off.text;
@@ -62,7 +78,8 @@ TEST(FlowCli, WorstCaseRefreshesEveryImpostorEveryFrame) {
 
 TEST(FlowCli, BadFlagsAreErrors) {
   for (const char* args : {"flow --size 12", "flow --mode fast", "flow --posture -1", "flow --view abc",
-                           "flow --sweep size", "flow --model /nonexistent.glb --frames 1"}) {
+                           "flow --sweep size", "flow --model /nonexistent.glb --frames 1",
+                           "flow --impostor-edges soft", "flow --snapshot-lod best", "flow --snapshot-camera fisheye"}) {
     Out o = run(args);
     EXPECT_NE(o.status, 0) << args;
     EXPECT_NE(o.text.find("flow"), std::string::npos) << args << ": " << o.text;

@@ -257,6 +257,44 @@ TEST(FramePlanner, WindowSizeCullingAndNearSwitch) {
   EXPECT_EQ(twice.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.impostors_per_window[1], 1);
 }
 
+// The snapshot draws the level the geometry path would draw for the character now, so the
+// impostor shows the same silhouette; the window's level is the literal section 4.3 rule.
+TEST(FramePlanner, SnapshotUsesTheGeometryLevelOfTheCharacter) {
+  Model m = tiny_model();
+  MeshLod coarse = m.lods[0];
+  m.lods[0].indices = {0, 1, 2, 0, 2, 1};  // the fine level: two triangles
+  m.lods[0].primitives = {Primitive{0, 6, 0}};
+  m.lods[0].screen_coverage = 0.2f;  // diameter >= 20 % of the viewport height
+  m.lods.push_back(coarse);          // the coarse level: one triangle
+  Crowd crowd(m);
+  crowd.add(Character{});
+  SceneCamera cam;
+  cam.height = 1024;
+  cam.target = m.ta;
+  // 100 px on screen: geometry level 1 (coverage 0.098); 2 texels per pixel -> the 256 window,
+  // whose level is 0 (coverage 0.25).
+  cam.eye = m.ta + glm::vec3(0, 0, 2 * m.radius * cam.pixels_per_metre(1.0f) / 100.0f);
+  FramePlanner screen(m);
+  const FramePlan& g = screen.plan(crowd, cam, 0.0f, RenderMode::kGeometry);
+  EXPECT_EQ(g.geometry[1].size(), 1u);
+  EXPECT_EQ(g.stats.geometry_triangles, 1u);
+  const FramePlan& p = screen.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+  EXPECT_EQ(p.stats.impostors_per_window[0], 1);
+  ASSERT_EQ(p.snapshots.size(), 2u);
+  EXPECT_TRUE(p.snapshots[0].empty());
+  EXPECT_EQ(p.snapshots[1].size(), 1u);
+  EXPECT_EQ(p.stats.snapshot_triangles, 1u);
+  ImpostorConfig literal;
+  literal.snapshot_lod_from_screen = false;
+  FramePlanner window(m, literal);
+  const FramePlan& w = window.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+  EXPECT_EQ(w.snapshots[0].size(), 1u);
+  EXPECT_TRUE(w.snapshots[1].empty());
+  EXPECT_EQ(w.stats.snapshot_triangles, 2u);
+  // The snapshot's page travels in window.w.
+  EXPECT_EQ(static_cast<int>(w.snapshots[0][0].window.w), window.atlas().page_class(0) >= 0 ? 0 : -1);
+}
+
 TEST(FramePlanner, AtlasFullFallsBackToGeometry) {
   Model m = tiny_model();
   Crowd crowd(m);
