@@ -76,8 +76,8 @@ struct MesherOptions {
 // (crease fitting at 0.15 % of the height included) plus the full-resolution OpenVDB head, hands
 // and feet (~46,000 triangles; decimation brings them down), within 0.15 % of the height
 // (0.15-0.29 % on random variants), extremities within 0.15 %; then contour-only levels of
-// ~4,600, ~2,000 and ~690 triangles with star-shaped cups for the extremities, the coarsest
-// within 2.3 % (2.4-2.8 % on variants; the toes and the groin).
+// ~4,600, ~2,000 and ~690 triangles with star-shaped cups for the extremities, within 2.1, 2.2
+// and 2.4 % (coarsest 2.4-2.8 % on variants 1-3; the toes and the groin).
 std::vector<LodDensity> default_lod_chain();
 
 // Samples the body's skin in its bind posture (body.sample_posture) into one skinned mesh per
