@@ -24,6 +24,7 @@ namespace {
 struct RenderArgs {
   std::string input, output, mode = "geometry", size = "512x512", clip, snapshot = "perspective";
   float time = 0.0f, azimuth = 0.0f, elevation = 10.0f, distance = 0.0f;
+  int lod = -1;  // -1: chosen by screen size
   bool json = false;
 };
 
@@ -58,6 +59,14 @@ int run_render(const RenderArgs& a) {
     return 1;
   }
   const double load_ms = ms(t0);
+  if (a.lod >= 0) {
+    if (a.lod >= static_cast<int>(model->lods.size())) {
+      std::cerr << "bodybuilder render: " << a.input << ": --lod " << a.lod << ": the file has "
+                << model->lods.size() << " level" << (model->lods.size() == 1 ? "" : "s") << "\n";
+      return 1;
+    }
+    model->lods = {model->lods[a.lod]};  // that level at every size
+  }
   if (!a.clip.empty()) {
     o.clip = model->find_clip(a.clip);
     if (o.clip < 0) {
@@ -111,6 +120,7 @@ void add_render_command(CLI::App& app, int* status) {
   cmd->add_option("--distance", a->distance, "Metres from the character's centre Ta; 0 = fit")->capture_default_str();
   cmd->add_option("--size", a->size, "Image size WxH in pixels")->capture_default_str();
   cmd->add_option("--clip", a->clip, "Clip name (default: the first)");
+  cmd->add_option("--lod", a->lod, "Draw this level of detail (default: chosen by screen size)")->check(CLI::NonNegativeNumber);
   cmd->add_option("--snapshot", a->snapshot, "Impostor snapshot projection: perspective (from the eye) or ortho (the paper's)")
       ->capture_default_str();
   cmd->add_flag("--json", a->json, "Print one JSON object with the figures");

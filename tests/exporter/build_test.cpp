@@ -115,3 +115,20 @@ TEST(Build, LevelsDecimateTheirExtremitiesProgressively) {
   }
   EXPECT_LT(lods.front().report.hausdorff_rel, lods.back().report.hausdorff_rel);
 }
+
+// `render --lod K` draws one level (the picture of the proxies next to level 0); a level the file
+// does not have is an error naming the file and the flag.
+TEST(Build, RenderDrawsAChosenLevel) {
+  auto png = (std::filesystem::temp_directory_path() / "bb_build_test" / "lod3.png").string();
+  std::filesystem::remove(png);
+  auto out = run(std::string(BB_BIN_DIR) + "/bodybuilder render " + built_glb() + " --lod 3 --size 64x128 -o " + png +
+                 " --json");
+  auto j = nlohmann::json::parse(out, nullptr, false);
+  if (j.is_discarded() && out.find("EGL") != std::string::npos) GTEST_SKIP() << "no headless OpenGL: " << out;
+  ASSERT_FALSE(j.is_discarded()) << out;
+  EXPECT_GT(j["covered_pixels"].get<long>(), 500) << out;
+  EXPECT_TRUE(std::filesystem::exists(png));
+  out = run(std::string(BB_BIN_DIR) + "/bodybuilder render " + built_glb() + " --lod 9 -o " + png + " 2>&1; echo status=$?");
+  EXPECT_NE(out.find(built_glb() + ": --lod 9: the file has 4 levels"), std::string::npos) << out;
+  EXPECT_NE(out.find("status=1"), std::string::npos) << out;
+}
