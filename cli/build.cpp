@@ -1,4 +1,4 @@
-// bodybuilder build [BODY.json ...] -o DIR [--variants N --seed S] [--motion CLIP.bvh ...]
+// bodybuilder build [BODY.json ...] -o DIR [--variants N --seed S [--variants-only]] [--motion CLIP.bvh ...]
 //                   [--lods K] [--per-lod-files] [--jobs J] [--json]
 // Many inputs are one batch: each is reported, a failure does not stop the others, the exit
 // status is non-zero if any failed; jobs run on all cores; progress goes to stderr.
@@ -29,6 +29,7 @@ struct BuildArgs {
   std::vector<std::string> bodies, motions;
   std::string out = "out";
   int variants = 0, lods = 4, jobs = 0;
+  bool variants_only = false;
   unsigned inner_threads = 0;  // threads inside one body's build (1 when bodies run in parallel)
   uint64_t seed = 1;
   bool json = false, per_lod = false, no_errors = false;
@@ -108,6 +109,10 @@ int run(BuildArgs a) {
     std::cerr << "bodybuilder build: --lods: expected 2 to 8 (got " << a.lods << ")\n";
     return 2;
   }
+  if (a.variants_only && a.variants < 1) {
+    std::cerr << "bodybuilder build: --variants-only needs --variants N with N >= 1\n";
+    return 2;
+  }
   if (a.variants < 0) {
     std::cerr << "bodybuilder build: --variants: expected >= 0\n";
     return 2;
@@ -130,7 +135,7 @@ int run(BuildArgs a) {
       else base.load_error = b.error().message();
     }
     base.name = base.base ? base.base->name : fs::path(in).stem().string();
-    jobs.push_back(base);
+    if (!a.variants_only || !base.base) jobs.push_back(base);  // a body that failed to load is reported anyway
     for (int v = 0; v < a.variants; ++v) {
       Job var = base;
       var.seed = a.seed + static_cast<uint64_t>(v);
@@ -201,6 +206,7 @@ void add_build_command(CLI::App& app, int* status) {
   cmd->add_option("BODY", a->bodies, "Body JSON files (none: the built-in default body)");
   cmd->add_option("-o,--output", a->out, "Output folder: one DIR/<name>.glb per body")->capture_default_str();
   cmd->add_option("--variants", a->variants, "Also write N seeded variants of each body")->capture_default_str();
+  cmd->add_flag("--variants-only", a->variants_only, "Write only the variants, not the bodies they vary");
   cmd->add_option("--seed", a->seed, "Seed of the first variant (then seed+1, ...)")->capture_default_str();
   cmd->add_option("--motion", a->motions, "BVH clips to retarget and add as animations");
   cmd->add_option("--lods", a->lods, "Levels of detail, 2..8")->capture_default_str();
