@@ -87,3 +87,15 @@ TEST(CliBuild, MotionCaptureClipKeepsItsDuration) {
     }
   EXPECT_TRUE(found) << i.text;
 }
+
+TEST(CliBuild, VariantsOnlyWritesJustTheVariants) {
+  fs::path d = fresh_dir("variants_only");
+  Out o = run("build --variants 1 --seed 3 --variants-only --lods 2 --no-errors -o " + (d / "out").string());
+  EXPECT_EQ(o.status, 0) << o.text;
+  EXPECT_TRUE(fs::exists(d / "out" / "default_v3.glb")) << o.text;
+  EXPECT_FALSE(fs::exists(d / "out" / "default.glb"));
+  o = run("build --variants-only -o " + (d / "out2").string());
+  EXPECT_EQ(o.status, 2) << o.text;
+  EXPECT_NE(o.text.find("--variants-only needs --variants N"), std::string::npos) << o.text;
+  EXPECT_FALSE(fs::exists(d / "out2"));
+}
