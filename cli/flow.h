@@ -33,9 +33,14 @@ struct FlowSettings {
   float orbit_deg_per_s = 0.0f;  // camera orbit speed
   int quality_every = 4;         // compare images every k-th measured frame
   int msaa = 4;                  // samples per pixel of the scene window (both paths)
-  float texels_per_pixel = 2.0f; // impostor windows chosen for this many texels per pixel
-  // Switches that isolate what limits image quality (the defaults are the runtime's):
-  std::string impostor_edges = "blend";  // blend (sorted), samples, coverage (alpha to coverage), test
+  // Impostor windows chosen for this many texels per pixel, and how impostor edges meet the
+  // scene. The test bed's defaults are the fastest setting that keeps edges antialiased: on
+  // llvmpipe (20 humans) 1 texel + alpha to coverage gives 26.6 dB at threshold 0 and 4.3x /
+  // 4.8x / 6.2x at 5 / 8 / 17 degrees; the runtime's own defaults (2 texels, sorted blending)
+  // give 30.5 dB but only 3.4x / 4.1x / 4.5x.
+  float texels_per_pixel = 1.0f;
+  // Switches that isolate what limits image quality:
+  std::string impostor_edges = "coverage";  // blend (sorted), samples, coverage (alpha to coverage), test
   bool snapshot_lod_from_screen = true;     // false: the LOD that matches the window (section 4.3)
   bool perspective_snapshots = true;        // false: the paper's orthographic snapshot camera
   bool hold_poses = false;                  // every human keeps one pose (no pose lag)
