@@ -48,7 +48,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["psnr_min_db"] = r.psnr_min_db;
   j["ssim"] = r.ssim;
   j["psnr_stored_db"] = r.psnr_stored_db;
-  if (s.impostor_edges != "blend") j["impostor_edges"] = s.impostor_edges;
+  j["impostor_edges"] = s.impostor_edges;
   if (!s.snapshot_lod_from_screen) j["snapshot_lod"] = "window";
   if (!s.perspective_snapshots) j["snapshot_camera"] = "orthographic";
   if (s.hold_poses) j["hold_poses"] = true;

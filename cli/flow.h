@@ -87,8 +87,8 @@ struct FlowArgs {
   bool json = false, scaling = false, distance_weighting = false;
   float orbit = 0;
   int msaa = 4;
-  float texels_per_pixel = 2.0f;
-  std::string impostor_edges = "blend", snapshot_lod = "screen", snapshot_camera = "perspective";
+  float texels_per_pixel = 1.0f;  // see FlowSettings
+  std::string impostor_edges = "coverage", snapshot_lod = "screen", snapshot_camera = "perspective";
   bool hold_poses = false;
   bool quiet = false;  // no summary on stdout (the demo prints its own)
   std::string scaling_list = "20,100,500,1000,2000,5000,10000";
