@@ -165,7 +165,7 @@ int run_mesh(const std::string& body_path, const std::string& dir, bool as_json,
   const auto& st = mesher::last_stage_times();
   report["stage_ms"] = {{"field", 1e3 * st.field},       {"contours", 1e3 * st.contours},
                         {"extremities", 1e3 * st.extremities}, {"joining", 1e3 * st.joining},
-                        {"skinning", 1e3 * st.skinning}, {"checks", 1e3 * st.checks},
+                        {"refining", 1e3 * st.refining}, {"skinning", 1e3 * st.skinning}, {"checks", 1e3 * st.checks},
                         {"errors", 1e3 * st.errors}};
   report["lods"] = nlohmann::json::array();
   for (const auto& l : *lods) {
@@ -200,8 +200,9 @@ int run_mesh(const std::string& body_path, const std::string& dir, bool as_json,
                   r.mean_m, 100 * r.mean_rel, r.extremity_hausdorff_m, 100 * r.extremity_hausdorff_m / body.height(),
                   r.closed, r.manifold, r.self_intersection_count, 1e3 * r.seconds);
     }
-    std::printf("stages (ms): field %.1f, contours %.1f, extremities %.1f, joining %.1f, skinning %.1f, checks %.1f, errors %.1f\n",
-                1e3 * st.field, 1e3 * st.contours, 1e3 * st.extremities, 1e3 * st.joining, 1e3 * st.skinning,
+    std::printf("stages (ms): field %.1f, contours %.1f, extremities %.1f, joining %.1f, refining %.1f, skinning %.1f, "
+                "checks %.1f, errors %.1f\n",
+                1e3 * st.field, 1e3 * st.contours, 1e3 * st.extremities, 1e3 * st.joining, 1e3 * st.refining, 1e3 * st.skinning,
                 1e3 * st.checks, 1e3 * st.errors);
     std::printf("wrote %s and one %s per level\n", png.c_str(), format.c_str());
   }
