@@ -25,9 +25,9 @@ struct BuildOptions {
   std::vector<motion::Clip> extra_clips;     // imported clips (already retargeted)
   bool proxies = true;                       // textured proxies at the lowest level
   size_t lod0_extremity_triangles = 4000;    // head, hands and feet of LOD 0 (0: full resolution)
-  // Per final level: Hausdorff and mean distance to the skin (mesh samples moved onto the
-  // iso-surface along the gradient; LOD 0's full-resolution vertices, which lie on the skin, to
-  // the mesh). Closed/manifold/self-intersection checks run either way.
+  // Per final level: Hausdorff and mean distance to the skin (from mesh samples, the distance to the
+  // skin along the field's gradient line; LOD 0's full-resolution vertices, which lie on the skin,
+  // to the mesh). Closed/manifold/self-intersection checks run either way.
   bool measure_errors = true;
   // Threads for the parallel stages (extremity parts, per-level checks); 0: one per core. A batch
   // that runs several bodies at once gives each 1.
