@@ -161,7 +161,7 @@ void main() {
 // standard 4x pattern, averaged (coverage as alpha).
 const char* kBillboardFs = R"(#version 450 core
 layout(binding = 2) uniform sampler2DArray u_atlas;
-uniform int u_edges;  // 0: alpha test, 1: premultiplied blending, 2: alpha to coverage
+uniform int u_edges;  // 0: alpha test, 1: premultiplied blending, 2: alpha to coverage, 4: one tap
 uniform int u_samples;
 uniform vec2 u_sample_pos[16];  // offsets from the pixel centre, pixels
 in vec3 v_uvl;
@@ -185,6 +185,13 @@ void main() {
     o_color = vec4(sum.rgb / sum.a, 1.0);
   }
 #else
+  if (u_edges == 4) {
+    // One tap at the pixel centre: at one texel per pixel, texels on pixels, an exact copy.
+    vec4 t = tap(v_uvl.xy);
+    if (t.a < 0.5) discard;
+    o_color = vec4(t.rgb / t.a, 1.0);
+    return;
+  }
   vec4 c = 0.25 * (tap(v_uvl.xy - 0.125 * dx - 0.375 * dy) + tap(v_uvl.xy + 0.375 * dx - 0.125 * dy) +
                    tap(v_uvl.xy - 0.375 * dx + 0.125 * dy) + tap(v_uvl.xy + 0.125 * dx + 0.375 * dy));
   if (u_edges == 0) {
@@ -624,6 +631,7 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
       case ImpostorEdges::kAlphaToCoverage: mode = sample_buffers > 0 ? 2 : 0; break;
       case ImpostorEdges::kAlphaTest: mode = 0; break;
       case ImpostorEdges::kBlend: mode = 1; break;
+      case ImpostorEdges::kCentre: mode = 4; break;
     }
     if (mode == 1) {
       // Blending: back to front (distance of Ta along the view direction), so that soft edges

@@ -49,7 +49,9 @@ Result<Image> render_portrait(const Model& model, const PortraitOptions& o) {
   auto target = OffscreenTarget::create(o.width, o.height);
   if (!target) return target.error();
   (*target)->bind(true);
-  (*renderer)->draw(plan);
+  DrawOptions draw;
+  draw.edges = ImpostorEdges::kCentre;  // texels on pixels: the impostor is the snapshot, exactly
+  (*renderer)->draw(plan, draw);
   Image img;
   img.width = o.width;
   img.height = o.height;

@@ -37,6 +37,9 @@ enum class ImpostorEdges {
   // The four-tap coverage picks that share of the pixel's samples (quantized, fixed pattern).
   kAlphaToCoverage,
   kAlphaTest,  // the four-tap coverage >= 0.5 (hard edges)
+  // One tap at the pixel centre, alpha tested: an exact copy of the snapshot when its texels lie on
+  // the pixels (render_portrait's one texel per pixel); aliased at any other scale.
+  kCentre,
 };
 
 struct DrawOptions {
