@@ -23,6 +23,39 @@ uint8_t triangle_part(const mesher::SkinnedMesh& m, size_t t) {
 
 }  // namespace
 
+mesher::SkinnedMesh with_extremities_of(const mesher::SkinnedMesh& level, const mesher::SkinnedMesh& from) {
+  mesher::SkinnedMesh out;
+  auto key = [](const glm::vec3& p) {
+    uint32_t b[3];
+    std::memcpy(b, &p, 12);
+    return (uint64_t(b[0]) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(b[1]) * 0xC2B2AE3D27D4EB4Full) ^ b[2];
+  };
+  std::unordered_multimap<uint64_t, uint32_t> index;
+  auto add = [&](const mesher::SkinnedMesh& m, uint32_t i) -> uint32_t {
+    const glm::vec3& p = m.positions[i];
+    auto range = index.equal_range(key(p));
+    for (auto it = range.first; it != range.second; ++it)
+      if (out.positions[it->second] == p) return it->second;
+    uint32_t n = static_cast<uint32_t>(out.positions.size());
+    out.positions.push_back(p);
+    if (!m.normals.empty()) out.normals.push_back(m.normals[i]);
+    if (!m.uvs.empty()) out.uvs.push_back(m.uvs[i]);
+    if (!m.joints.empty()) out.joints.push_back(m.joints[i]);
+    if (!m.weights.empty()) out.weights.push_back(m.weights[i]);
+    out.part.push_back(m.part[i]);
+    out.seam.push_back(m.seam[i]);
+    index.emplace(key(p), n);
+    return n;
+  };
+  for (size_t t = 0; t < level.indices.size(); t += 3)
+    if (triangle_part(level, t) == 0)
+      for (int k = 0; k < 3; ++k) out.indices.push_back(add(level, level.indices[t + k]));
+  for (size_t t = 0; t < from.indices.size(); t += 3)
+    if (triangle_part(from, t) != 0)
+      for (int k = 0; k < 3; ++k) out.indices.push_back(add(from, from.indices[t + k]));
+  return out;
+}
+
 Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh, size_t budget, Report* report,
                                                  unsigned threads) {
   const size_t nv = mesh.positions.size();
@@ -92,35 +125,21 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
   }
   for (const Job& j : jobs)
     if (!j.result) return j.result.error();
-  // Reassembly: the body and zipper triangles as they were, then each decimated part; vertices
-  // matched by position (locked ones are the same in both).
-  mesher::SkinnedMesh out;
-  std::unordered_map<uint64_t, std::vector<uint32_t>> index;
-  auto key = [](const glm::vec3& p) {
-    uint32_t b[3];
-    std::memcpy(b, &p, 12);
-    return (uint64_t(b[0]) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(b[1]) * 0xC2B2AE3D27D4EB4Full) ^ b[2];
-  };
-  auto add = [&](const mesher::SkinnedMesh& m, uint32_t i) -> uint32_t {
-    auto& bucket = index[key(m.positions[i])];
-    for (uint32_t o : bucket)
-      if (out.positions[o] == m.positions[i]) return o;
-    uint32_t n = static_cast<uint32_t>(out.positions.size());
-    out.positions.push_back(m.positions[i]);
-    if (!m.normals.empty()) out.normals.push_back(m.normals[i]);
-    if (!m.uvs.empty()) out.uvs.push_back(m.uvs[i]);
-    if (!m.joints.empty()) out.joints.push_back(m.joints[i]);
-    if (!m.weights.empty()) out.weights.push_back(m.weights[i]);
-    out.part.push_back(m.part[i]);
-    out.seam.push_back(m.seam[i]);
-    bucket.push_back(n);
-    return n;
-  };
-  for (size_t t = 0; t < mesh.indices.size(); t += 3)
-    if (triangle_part(mesh, t) == 0)
-      for (int k = 0; k < 3; ++k) out.indices.push_back(add(mesh, mesh.indices[t + k]));
-  for (const Job& j : jobs)
-    for (uint32_t i : j.result->indices) out.indices.push_back(add(*j.result, i));
+  // Reassembly: the body and zipper triangles as they were, then the decimated parts.
+  mesher::SkinnedMesh parts;
+  for (const Job& j : jobs) {
+    const mesher::SkinnedMesh& r = *j.result;
+    const uint32_t base = static_cast<uint32_t>(parts.positions.size());
+    parts.positions.insert(parts.positions.end(), r.positions.begin(), r.positions.end());
+    parts.normals.insert(parts.normals.end(), r.normals.begin(), r.normals.end());
+    parts.uvs.insert(parts.uvs.end(), r.uvs.begin(), r.uvs.end());
+    parts.joints.insert(parts.joints.end(), r.joints.begin(), r.joints.end());
+    parts.weights.insert(parts.weights.end(), r.weights.begin(), r.weights.end());
+    parts.part.insert(parts.part.end(), r.part.begin(), r.part.end());
+    parts.seam.insert(parts.seam.end(), r.seam.begin(), r.seam.end());
+    for (uint32_t i : r.indices) parts.indices.push_back(base + i);
+  }
+  mesher::SkinnedMesh out = with_extremities_of(mesh, parts);
   if (report) {
     report->triangles_before = total;
     report->triangles_after = out.indices.size() / 3;

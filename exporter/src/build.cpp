@@ -8,10 +8,8 @@
 #include <memory>
 #include <thread>
 #include <chrono>
-#include <cstring>
 #include <cstdio>
 #include <cstdlib>
-#include <unordered_map>
 
 #include "bb/decimate/extremities.h"
 #include "bb/mesher/mesh_check.h"
@@ -49,47 +47,6 @@ std::vector<mesher::LodDensity> chain_of(int k) {
     c.insert(c.end() - 1, mid);
   }
   return c;
-}
-
-// Level `level` with its full-resolution extremity triangles (the same OpenVDB head, hands and
-// feet at every level) replaced by those of `from`, the same extremities already decimated.
-// Seam loops are locked in decimation, so `from`'s extremities meet `level`'s zippers exactly;
-// vertices are matched by position.
-mesher::SkinnedMesh with_extremities_of(const mesher::SkinnedMesh& level, const mesher::SkinnedMesh& from) {
-  mesher::SkinnedMesh out;
-  auto key = [](const glm::vec3& p) {
-    uint32_t b[3];
-    std::memcpy(b, &p, 12);
-    return (uint64_t(b[0]) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(b[1]) * 0xC2B2AE3D27D4EB4Full) ^ b[2];
-  };
-  std::unordered_multimap<uint64_t, uint32_t> index;
-  auto add = [&](const mesher::SkinnedMesh& m, uint32_t i) -> uint32_t {
-    const glm::vec3& p = m.positions[i];
-    auto range = index.equal_range(key(p));
-    for (auto it = range.first; it != range.second; ++it)
-      if (out.positions[it->second] == p) return it->second;
-    uint32_t n = static_cast<uint32_t>(out.positions.size());
-    out.positions.push_back(p);
-    if (!m.normals.empty()) out.normals.push_back(m.normals[i]);
-    if (!m.uvs.empty()) out.uvs.push_back(m.uvs[i]);
-    if (!m.joints.empty()) out.joints.push_back(m.joints[i]);
-    if (!m.weights.empty()) out.weights.push_back(m.weights[i]);
-    out.part.push_back(m.part[i]);
-    out.seam.push_back(m.seam[i]);
-    index.emplace(key(p), n);
-    return n;
-  };
-  auto is_extremity = [](const mesher::SkinnedMesh& m, size_t t) {
-    uint8_t p = m.part[m.indices[t]];
-    return p != 0 && m.part[m.indices[t + 1]] == p && m.part[m.indices[t + 2]] == p;
-  };
-  for (size_t t = 0; t < level.indices.size(); t += 3)
-    if (!is_extremity(level, t))
-      for (int k = 0; k < 3; ++k) out.indices.push_back(add(level, level.indices[t + k]));
-  for (size_t t = 0; t < from.indices.size(); t += 3)
-    if (is_extremity(from, t))
-      for (int k = 0; k < 3; ++k) out.indices.push_back(add(from, from.indices[t + k]));
-  return out;
 }
 
 // Distance of a level to the skin, metres. Mesh -> skin: from every vertex and face centre, the
@@ -214,7 +171,7 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
     });
   for (int l = 0; l + 1 < k; ++l) {
     mesher::Lod& lod = (*lods)[l];
-    if (l > 0) lod.mesh = with_extremities_of(lod.mesh, (*lods)[l - 1].mesh);
+    if (l > 0) lod.mesh = decimate::with_extremities_of(lod.mesh, (*lods)[l - 1].mesh);
     size_t ext = extremity_triangles(lod.mesh);
     size_t body_tris = lod.mesh.triangle_count() - ext;
     size_t budget = l == 0 ? opt.lod0_extremity_triangles : std::max<size_t>(200, body_tris * 45 / 100);

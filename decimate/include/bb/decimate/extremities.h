@@ -31,6 +31,12 @@ namespace bb::decimate {
 Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh, size_t extremity_triangles,
                                                  Report* report = nullptr, unsigned threads = 0);
 
+// `level`'s body and zipper triangles with the extremity triangles of `from` (the same head, hands
+// and feet, e.g. decimated with their seam loops locked, so they meet `level`'s zippers exactly);
+// vertices are welded by exact position, attributes from the mesh that brings the position first.
+// Both meshes need SkinnedMesh::part and ::seam.
+mesher::SkinnedMesh with_extremities_of(const mesher::SkinnedMesh& level, const mesher::SkinnedMesh& from);
+
 struct ProxyOptions {
   int texture_size = 256;                      // square RGBA8 texture, pixels
   glm::vec3 skin{0.80f, 0.62f, 0.50f};         // base colour of the skin (linear)
