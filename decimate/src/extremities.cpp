@@ -206,6 +206,9 @@ Result<Proxies> bake_proxies(const mesher::SkinnedMesh& coarse, const mesher::Sk
   glm::vec3 light = glm::normalize(o.light);
   auto shade = [&](const glm::vec3& n) { return 0.35f + 0.65f * std::max(0.0f, glm::dot(n, light)); };
   for (size_t k = 0; k < tris.size(); ++k) {
+    bool has_last = false;  // the previous query in this triangle (same part, same grid)
+    float last_d = 0;
+    glm::vec3 last_p(0.0f);
     size_t t = tris[k];
     int c = static_cast<int>(k / 2), half = static_cast<int>(k % 2);
     int cx = (c % per_row) * cell, cy = (c / per_row) * cell;
@@ -260,7 +263,12 @@ Result<Proxies> bake_proxies(const mesher::SkinnedMesh& coarse, const mesher::Sk
         }
         glm::vec3 cp;
         uint32_t dt = 0;
-        grids[part]->closest(p, &cp, &dt);
+        // Queries move little from one block to the next: the last distance plus the move bounds
+        // this one.
+        float bound = has_last ? last_d + glm::distance(p, last_p) : 1e15f;
+        last_d = grids[part]->closest(p, &cp, &dt, bound);
+        last_p = p;
+        has_last = true;
         const auto& di = det_idx[part];
         glm::vec3 q0 = detailed.positions[di[3 * dt]], q1 = detailed.positions[di[3 * dt + 1]],
                   q2 = detailed.positions[di[3 * dt + 2]];

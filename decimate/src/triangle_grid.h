@@ -75,10 +75,13 @@ class TriangleGrid {
     return closest(q, &p, nullptr);
   }
 
-  // Distance from q to the nearest triangle; its closest point and triangle index.
-  float closest(const glm::vec3& q, glm::vec3* point, uint32_t* triangle) const {
-    float best2 = 1e30f;
+  // Distance from q to the nearest triangle; its closest point and triangle index. `upper`, when
+  // given, must be at least that distance (e.g. the previous query's distance plus how far the
+  // query moved): triangles whose box lies farther are skipped and the search stops sooner.
+  float closest(const glm::vec3& q, glm::vec3* point, uint32_t* triangle, float upper = 1e15f) const {
+    float best2 = upper < 1e15f ? upper * upper * 1.0001f + 1e-12f : 1e30f;
     if (items_.empty()) return std::sqrt(best2);
+    bool found = false;
     glm::ivec3 c = cell_of(q);
     int max_ring = std::max(dims_.x, std::max(dims_.y, dims_.z));
     for (int r = 0; r <= max_ring; ++r) {
@@ -105,6 +108,12 @@ class TriangleGrid {
             size_t cell = index(x, y, z);
             for (uint32_t i = start_[cell]; i < start_[cell + 1]; ++i) {
               uint32_t t = items_[i];
+              const glm::vec3& a = p_[idx_[3 * t]];
+              const glm::vec3& b = p_[idx_[3 * t + 1]];
+              const glm::vec3& c3 = p_[idx_[3 * t + 2]];
+              glm::vec3 out = glm::max(glm::max(glm::min(a, glm::min(b, c3)) - q, q - glm::max(a, glm::max(b, c3))),
+                                       glm::vec3(0.0f));
+              if (glm::dot(out, out) >= best2) continue;  // its box is already too far
               glm::vec3 cp = closest_on_triangle(q, p_[idx_[3 * t]], p_[idx_[3 * t + 1]], p_[idx_[3 * t + 2]]);
               glm::vec3 d = cp - q;
               float d2 = glm::dot(d, d);
@@ -112,11 +121,13 @@ class TriangleGrid {
                 best2 = d2;
                 *point = cp;
                 if (triangle) *triangle = t;
+                found = true;
               }
             }
           }
         }
     }
+    if (!found && upper < 1e15f) return closest(q, point, triangle);  // `upper` was too tight
     return std::sqrt(best2);
   }
 
