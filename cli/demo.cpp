@@ -42,10 +42,10 @@ Status write_lod_pictures(const std::string& glb, const std::string& dir) {
   if (!model) return model.error();
   auto ctx = runtime::HeadlessContext::create();
   if (!ctx) return ctx.error();
-  auto level = [&](int l, const runtime::PortraitOptions& o) -> Result<runtime::Image> {
-    runtime::Model one = *model;
-    one.lods = {model->lods[l]};
-    return runtime::render_portrait(one, o);
+  const std::vector<runtime::MeshLod> all = model->lods;
+  auto level = [&](int l, const runtime::PortraitOptions& o) {
+    model->lods = {all[l]};  // that level at every size
+    return runtime::render_portrait(*model, o);
   };
   auto side_by_side = [&](const std::vector<runtime::Image>& row, const std::string& path) -> Status {
     int w = 0, h = 0;
@@ -64,7 +64,7 @@ Status write_lod_pictures(const std::string& glb, const std::string& dir) {
     }
     return write_png(path, w, h, rgba.data());
   };
-  const int levels = static_cast<int>(model->lods.size());
+  const int levels = static_cast<int>(all.size());
   std::vector<runtime::Image> row;
   runtime::PortraitOptions o;
   o.width = 256, o.height = 512, o.azimuth_deg = 25, o.time = 0.25f;

@@ -12,17 +12,6 @@
 
 namespace bb::decimate {
 
-namespace {
-
-// The part of triangle t when all its vertices share one non-body part, else 0.
-uint8_t triangle_part(const mesher::SkinnedMesh& m, size_t t) {
-  uint8_t p = m.part[m.indices[t]];
-  if (p != 0 && m.part[m.indices[t + 1]] == p && m.part[m.indices[t + 2]] == p) return p;
-  return 0;
-}
-
-}  // namespace
-
 mesher::SkinnedMesh with_extremities_of(const mesher::SkinnedMesh& level, const mesher::SkinnedMesh& from) {
   mesher::SkinnedMesh out;
   auto key = [](const glm::vec3& p) {
@@ -36,22 +25,15 @@ mesher::SkinnedMesh with_extremities_of(const mesher::SkinnedMesh& level, const 
     auto range = index.equal_range(key(p));
     for (auto it = range.first; it != range.second; ++it)
       if (out.positions[it->second] == p) return it->second;
-    uint32_t n = static_cast<uint32_t>(out.positions.size());
-    out.positions.push_back(p);
-    if (!m.normals.empty()) out.normals.push_back(m.normals[i]);
-    if (!m.uvs.empty()) out.uvs.push_back(m.uvs[i]);
-    if (!m.joints.empty()) out.joints.push_back(m.joints[i]);
-    if (!m.weights.empty()) out.weights.push_back(m.weights[i]);
-    out.part.push_back(m.part[i]);
-    out.seam.push_back(m.seam[i]);
+    uint32_t n = out.append_vertex(m, i);
     index.emplace(key(p), n);
     return n;
   };
   for (size_t t = 0; t < level.indices.size(); t += 3)
-    if (triangle_part(level, t) == 0)
+    if (level.extremity_part(t) == 0)
       for (int k = 0; k < 3; ++k) out.indices.push_back(add(level, level.indices[t + k]));
   for (size_t t = 0; t < from.indices.size(); t += 3)
-    if (triangle_part(from, t) != 0)
+    if (from.extremity_part(t) != 0)
       for (int k = 0; k < 3; ++k) out.indices.push_back(add(from, from.indices[t + k]));
   return out;
 }
@@ -67,7 +49,7 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
   std::vector<char> shared(nv, 0);
   size_t extremity = 0;
   for (size_t t = 0; t < mesh.indices.size(); t += 3) {
-    uint8_t p = triangle_part(mesh, t);
+    uint8_t p = mesh.extremity_part(t);
     if (p != 0 && p < 8) {
       tris[p].push_back(t);
       ++extremity;
@@ -85,7 +67,6 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
     mesher::SkinnedMesh sub;
     Options opt;
     Result<mesher::SkinnedMesh> result = Error{"", "", "not run"};
-    Report rep;
   };
   std::vector<Job> jobs;
   for (int p = 1; p < 8; ++p) {
@@ -94,14 +75,7 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
     std::vector<int> map(nv, -1);
     auto add = [&](uint32_t i) {
       if (map[i] < 0) {
-        map[i] = static_cast<int>(j.sub.positions.size());
-        j.sub.positions.push_back(mesh.positions[i]);
-        if (mesh.normals.size() == nv) j.sub.normals.push_back(mesh.normals[i]);
-        if (mesh.uvs.size() == nv) j.sub.uvs.push_back(mesh.uvs[i]);
-        if (mesh.joints.size() == nv) j.sub.joints.push_back(mesh.joints[i]);
-        if (mesh.weights.size() == nv) j.sub.weights.push_back(mesh.weights[i]);
-        j.sub.part.push_back(mesh.part[i]);
-        j.sub.seam.push_back(mesh.seam[i]);
+        map[i] = static_cast<int>(j.sub.append_vertex(mesh, i));
         j.opt.locked.push_back(shared[i] || mesh.seam[i] != 0);
       }
       return static_cast<uint32_t>(map[i]);
@@ -130,13 +104,7 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
   for (const Job& j : jobs) {
     const mesher::SkinnedMesh& r = *j.result;
     const uint32_t base = static_cast<uint32_t>(parts.positions.size());
-    parts.positions.insert(parts.positions.end(), r.positions.begin(), r.positions.end());
-    parts.normals.insert(parts.normals.end(), r.normals.begin(), r.normals.end());
-    parts.uvs.insert(parts.uvs.end(), r.uvs.begin(), r.uvs.end());
-    parts.joints.insert(parts.joints.end(), r.joints.begin(), r.joints.end());
-    parts.weights.insert(parts.weights.end(), r.weights.begin(), r.weights.end());
-    parts.part.insert(parts.part.end(), r.part.begin(), r.part.end());
-    parts.seam.insert(parts.seam.end(), r.seam.begin(), r.seam.end());
+    for (uint32_t i = 0; i < r.positions.size(); ++i) parts.append_vertex(r, i);
     for (uint32_t i : r.indices) parts.indices.push_back(base + i);
   }
   mesher::SkinnedMesh out = with_extremities_of(mesh, parts);
@@ -163,7 +131,7 @@ Result<Proxies> bake_proxies(const mesher::SkinnedMesh& coarse, const mesher::Sk
   // Detailed extremity triangles, per part, in nearest-point grids.
   std::vector<std::vector<uint32_t>> det_idx(8);
   for (size_t t = 0; t < detailed.indices.size(); t += 3) {
-    uint8_t p = triangle_part(detailed, t);
+    uint8_t p = detailed.extremity_part(t);
     if (p && p < 8) det_idx[p].insert(det_idx[p].end(), {detailed.indices[t], detailed.indices[t + 1], detailed.indices[t + 2]});
   }
   std::vector<std::unique_ptr<detail::TriangleGrid>> grids(8);
@@ -172,7 +140,7 @@ Result<Proxies> bake_proxies(const mesher::SkinnedMesh& coarse, const mesher::Sk
 
   std::vector<size_t> tris;
   for (size_t t = 0; t < coarse.indices.size(); t += 3) {
-    uint8_t p = triangle_part(coarse, t);
+    uint8_t p = coarse.extremity_part(t);
     if (p && p < 8 && grids[p]) tris.push_back(t);
   }
   Proxies out;
@@ -288,16 +256,7 @@ Result<Proxies> bake_proxies(const mesher::SkinnedMesh& coarse, const mesher::Sk
   mesher::SkinnedMesh compact;
   compact.indices.reserve(out.mesh.indices.size());
   for (uint32_t& i : out.mesh.indices) {
-    if (used[i] < 0) {
-      used[i] = static_cast<int>(compact.positions.size());
-      compact.positions.push_back(out.mesh.positions[i]);
-      if (!out.mesh.normals.empty()) compact.normals.push_back(out.mesh.normals[i]);
-      compact.uvs.push_back(out.mesh.uvs[i]);
-      if (!out.mesh.joints.empty()) compact.joints.push_back(out.mesh.joints[i]);
-      if (!out.mesh.weights.empty()) compact.weights.push_back(out.mesh.weights[i]);
-      compact.part.push_back(out.mesh.part[i]);
-      if (!out.mesh.seam.empty()) compact.seam.push_back(out.mesh.seam[i]);
-    }
+    if (used[i] < 0) used[i] = static_cast<int>(compact.append_vertex(out.mesh, i));
     compact.indices.push_back(static_cast<uint32_t>(used[i]));
   }
   out.mesh = std::move(compact);

@@ -2,14 +2,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <future>
-#include <optional>
 #include <memory>
 #include <thread>
-#include <chrono>
-#include <cstdio>
-#include <cstdlib>
 
 #include "bb/decimate/extremities.h"
 #include "bb/mesher/mesh_check.h"
@@ -22,16 +19,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-size_t extremity_triangles(const mesher::SkinnedMesh& m) {
-  if (m.part.size() != m.positions.size()) return 0;
-  size_t n = 0;
-  for (size_t t = 0; t < m.indices.size(); t += 3) {
-    uint8_t p = m.part[m.indices[t]];
-    n += p != 0 && m.part[m.indices[t + 1]] == p && m.part[m.indices[t + 2]] == p;
-  }
-  return n;
-}
 
 // The default chain resampled to `k` levels: always the finest and the coarsest, then the
 // default's middle levels, then copies of the middle levels (k > 4 repeats densities halfway).
@@ -50,7 +37,8 @@ std::vector<mesher::LodDensity> chain_of(int k) {
 }
 
 // Distance of a level to the skin, metres. Mesh -> skin: from every vertex and face centre, the
-// distance to the skin along the field's gradient line (an upper bound of the true distance). Skin -> mesh: `skin` points (on the iso-surface) to the nearest triangle.
+// distance to a skin point (an upper bound of the true distance). Skin -> mesh: `skin` points (on
+// the iso-surface) to the nearest triangle.
 struct SkinError {
   double hausdorff_m = 0, mean_m = 0;
 };
@@ -61,9 +49,8 @@ SkinError skin_error(const modeler::ImplicitSurface& surface, const mesher::Skin
   // are not stepped over) and bisection; where that finds no crossing near the first-order
   // estimate (between fingers the gradient may point away from the nearest skin), rays in 162
   // directions marched in 0.5 mm steps take the nearest crossing. Either way the result is the
-  // distance to a point of the skin: an upper bound of the true distance, capped at 5 cm.
-  // (Plain Newton iterations wander where the field is steep and far from linear and overstated
-  // distances in the finger webbing by up to 10 mm.)
+  // distance to a point of the skin: an upper bound of the true distance, capped at 5 cm. (Plain
+  // Newton iterations wander where the field is steep and far from linear.)
   const float kCap = 0.05f;
   auto crossing = [&](const glm::vec3& x0, const glm::vec3& d, float f0, float gl, float limit, float max_step) {
     float lo = 0, f = f0;
@@ -157,7 +144,7 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
   // meshes, seams locked) down to a budget in proportion with its contour triangles. LOD 0's
   // undecimated mesh is kept as the source of the proxies' texture and of the skin samples.
   t0 = Clock::now();
-  mesher::SkinnedMesh full_extremities = (*lods)[0].mesh;
+  mesher::SkinnedMesh full_lod0 = (*lods)[0].mesh;
   // The proxies need only the lowest level (never decimated) and the full-resolution
   // extremities: bake them alongside the decimation.
   double proxy_seconds = 0;
@@ -165,14 +152,14 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
   if (opt.proxies)
     proxies_job = std::async(opt.threads == 1 ? std::launch::deferred : std::launch::async, [&] {
       auto tp = Clock::now();
-      auto r = decimate::bake_proxies((*lods)[k - 1].mesh, full_extremities);
+      auto r = decimate::bake_proxies((*lods)[k - 1].mesh, full_lod0);
       proxy_seconds = since(tp);
       return r;
     });
   for (int l = 0; l + 1 < k; ++l) {
     mesher::Lod& lod = (*lods)[l];
     if (l > 0) lod.mesh = decimate::with_extremities_of(lod.mesh, (*lods)[l - 1].mesh);
-    size_t ext = extremity_triangles(lod.mesh);
+    size_t ext = lod.mesh.extremity_triangle_count();
     size_t body_tris = lod.mesh.triangle_count() - ext;
     size_t budget = l == 0 ? opt.lod0_extremity_triangles : std::max<size_t>(200, body_tris * 45 / 100);
     if (budget == 0 || ext <= budget) continue;
@@ -191,7 +178,7 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
     surface = std::make_unique<modeler::ImplicitSurface>(body, body.skeleton->posture(body.sample_posture));
     // Skin samples: LOD 0's full-resolution vertices that lie on the iso-surface (contour
     // samples, projected OpenVDB vertices), at most ~20,000 of them.
-    const auto& fp = full_extremities.positions;
+    const auto& fp = full_lod0.positions;
     size_t stride = std::max<size_t>(1, fp.size() / 20000);
     for (size_t i = 0; i < fp.size(); i += stride)
       if (std::abs(surface->field(fp[i]) - modeler::kIso) < 1e-3f) skin.push_back(fp[i]);
@@ -202,7 +189,7 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
     mesher::LodReport& r = lod.report;
     r.triangles = lod.mesh.triangle_count();
     r.vertices = lod.mesh.positions.size();
-    r.extremity_triangles = extremity_triangles(lod.mesh);
+    r.extremity_triangles = lod.mesh.extremity_triangle_count();
     r.closed = check.closed && check.connected_components == 1;
     r.manifold = check.manifold;
     r.oriented = check.oriented;
@@ -229,9 +216,18 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
   }
   out.times.checks = since(t0);
 
-  // The proxies read the lowest level: finish them before the levels move into the output.
-  std::optional<Result<decimate::Proxies>> proxies;
-  if (opt.proxies) proxies.emplace(proxies_job.get());
+  // Lowest level: the textured proxies (times.proxies: the baking itself, which overlaps the
+  // decimation when more than one thread is allowed). The level was checked and measured above;
+  // the proxies only give its extremity triangles vertices of their own with uvs.
+  int proxy_texture = -1;
+  if (opt.proxies) {
+    auto prox = proxies_job.get();
+    if (!prox) return Error{"", "proxies", prox.error().message()};
+    (*lods)[k - 1].mesh = std::move(prox->mesh);
+    proxy_texture = static_cast<int>(out.input.textures.size());
+    out.input.textures.push_back(Image{prox->width, prox->height, std::move(prox->rgba)});
+  }
+  out.times.proxies = proxy_seconds;
 
   out.input.body = &body;
   for (int l = 0; l < k; ++l) {
@@ -241,16 +237,7 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
     e.screen_coverage = mo.lods[l].screen_coverage;
     out.input.lods.push_back(std::move(e));
   }
-  // Lowest level: textured proxies baked from LOD 0 (times.proxies: the baking itself, which
-  // overlaps the decimation when more than one thread is allowed).
-  if (opt.proxies) {
-    auto& prox = *proxies;
-    if (!prox) return Error{"", "proxies", prox.error().message()};
-    out.input.lods.back().mesh = std::move(prox->mesh);
-    out.input.lods.back().texture = 0;
-    out.input.textures.push_back(Image{prox->width, prox->height, std::move(prox->rgba)});
-  }
-  out.times.proxies = proxy_seconds;
+  out.input.lods.back().texture = proxy_texture;
 
   t0 = Clock::now();
   for (float v : opt.walk_speeds) {

@@ -1235,11 +1235,7 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
     r.triangles = mesh.triangle_count();
     r.vertices = nv;
     r.vdb_extremities = d.vdb_extremities;
-    for (size_t t = 0; t < mesh.indices.size(); t += 3) {
-      uint8_t p0 = mesh.part[mesh.indices[t]];
-      if (p0 != 0 && mesh.part[mesh.indices[t + 1]] == p0 && mesh.part[mesh.indices[t + 2]] == p0)
-        ++r.extremity_triangles;
-    }
+    r.extremity_triangles = mesh.extremity_triangle_count();
     if (options.check_topology) {
       t0 = Clock::now();
       MeshCheck c = check_mesh(mesh.positions, mesh.indices, true);
@@ -1262,8 +1258,7 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
       size_t nt = mesh.triangle_count();
       for (int s = 0; s < options.error_samples; ++s) {
         size_t t = std::min(nt - 1, size_t(u(rng) * nt));
-        uint8_t p0 = mesh.part[mesh.indices[3 * t]];
-        pts_ext.push_back(p0 != 0 && mesh.part[mesh.indices[3 * t + 1]] == p0 && mesh.part[mesh.indices[3 * t + 2]] == p0);
+        pts_ext.push_back(mesh.extremity_part(3 * t) != 0);
         float r1 = std::sqrt(u(rng)), r2 = u(rng);
         const glm::vec3 &a = mesh.positions[mesh.indices[3 * t]], &b = mesh.positions[mesh.indices[3 * t + 1]],
                         &c = mesh.positions[mesh.indices[3 * t + 2]];

@@ -56,8 +56,8 @@ float worst_deviation(const PlainMesh& m, const SubField& skin, glm::vec3* where
   return worst;
 }
 
-TEST(CreaseFit, TwoMetaballsUnionFollowsTheWaist) {
-  const float R = 0.08f, a = 0.06f;
+// Two metaballs of radius R at x = -a and x = +a on the root joint, in the neutral posture.
+modeler::Body two_metaballs(float R, float a) {
   modeler::Body b;
   b.name = "two balls";
   b.skeleton = modeler::default_body().skeleton;
@@ -70,6 +70,12 @@ TEST(CreaseFit, TwoMetaballsUnionFollowsTheWaist) {
     p.radii = glm::vec3(R);
     b.primitives.push_back(p);
   }
+  return b;
+}
+
+TEST(CreaseFit, TwoMetaballsUnionFollowsTheWaist) {
+  const float R = 0.08f, a = 0.06f;
+  const modeler::Body b = two_metaballs(R, a);
   modeler::ImplicitSurface s(b, b.skeleton->posture("neutral"));
   SubField whole(s);
   const glm::vec3 c(b.skeleton->world_transforms(b.skeleton->posture("neutral"))[0][3]);
@@ -108,18 +114,7 @@ TEST(CreaseFit, TwoMetaballsUnionFollowsTheWaist) {
 // Frozen vertices and the edges between them are left alone.
 TEST(CreaseFit, FrozenEdgesAreKept) {
   const float R = 0.08f, a = 0.06f;
-  modeler::Body b;
-  b.name = "two balls";
-  b.skeleton = modeler::default_body().skeleton;
-  b.sample_posture = "neutral";
-  for (float x : {-a, a}) {
-    modeler::Primitive p;
-    p.type = modeler::PrimitiveType::kMetaball;
-    p.joint = 0;
-    p.center = {x, 0, 0};
-    p.radii = glm::vec3(R);
-    b.primitives.push_back(p);
-  }
+  const modeler::Body b = two_metaballs(R, a);
   modeler::ImplicitSurface s(b, b.skeleton->posture("neutral"));
   SubField whole(s);
   const glm::vec3 c(b.skeleton->world_transforms(b.skeleton->posture("neutral"))[0][3]);

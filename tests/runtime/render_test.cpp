@@ -131,6 +131,32 @@ INSTANTIATE_TEST_SUITE_P(SharedModels, PortraitPsnr,
 namespace bb::runtime {
 namespace {
 
+// Twenty walkers on rings of 4-6 m, at different phases, and the camera above the ring that
+// sees them all (640x512); every character refreshed each frame (both thresholds 0).
+Crowd walker_ring(const Model& m) {
+  Crowd crowd(m);
+  for (int i = 0; i < 20; ++i) {
+    float a = 2.0f * 3.14159265f * i / 20.0f, rad = 4.0f + (i % 3);
+    crowd.add(Character{glm::vec3(rad * std::sin(a), 0, rad * std::cos(a)), a + 1.5708f, 1.0f, 0, 0.1f * i, 1.0f});
+  }
+  return crowd;
+}
+ImpostorConfig refresh_always() {
+  ImpostorConfig cfg;
+  cfg.cache.posture_threshold = 0.0f;
+  cfg.cache.view_threshold_deg = 0.0f;
+  return cfg;
+}
+SceneCamera ring_camera() {
+  SceneCamera cam;
+  cam.width = 640;
+  cam.height = 512;
+  cam.eye = {0, 6, 16};
+  cam.target = {0, 0.5f, 0};
+  cam.fov_y = glm::radians(45.0f);
+  return cam;
+}
+
 // Twenty walkers on a circle seen from above the ring: the crowd path (planner + renderer) with
 // every character refreshed each frame, compared with geometry frame by frame.
 TEST(CrowdRender, ImpostorFramesMatchGeometryFrames) {
@@ -139,25 +165,14 @@ TEST(CrowdRender, ImpostorFramesMatchGeometryFrames) {
   if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
   auto m = load_model(path);
   ASSERT_TRUE(m.ok());
-  Crowd crowd(*m);
-  for (int i = 0; i < 20; ++i) {
-    float a = 2.0f * 3.14159265f * i / 20.0f, rad = 4.0f + (i % 3);
-    crowd.add(Character{glm::vec3(rad * std::sin(a), 0, rad * std::cos(a)), a + 1.5708f, 1.0f, 0, 0.1f * i, 1.0f});
-  }
-  ImpostorConfig cfg;
-  cfg.cache.posture_threshold = 0.0f;
-  cfg.cache.view_threshold_deg = 0.0f;
+  Crowd crowd = walker_ring(*m);
+  const ImpostorConfig cfg = refresh_always();
   FramePlanner planner(*m, cfg);
   auto renderer = Renderer::create(*m, cfg);
   ASSERT_TRUE(renderer.ok()) << renderer.error().message();
   auto target = OffscreenTarget::create(640, 512);
   ASSERT_TRUE(target.ok());
-  SceneCamera cam;
-  cam.width = 640;
-  cam.height = 512;
-  cam.eye = {0, 6, 16};
-  cam.target = {0, 0.5f, 0};
-  cam.fov_y = glm::radians(45.0f);
+  const SceneCamera cam = ring_camera();
   for (int f = 0; f < 3; ++f) {
     float t = 0.1f * f;
     (*target)->bind(true);
@@ -367,25 +382,14 @@ TEST(CrowdRender, MultisampledImpostorFramesMatchGeometryFrames) {
   if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
   auto m = load_model(path);
   ASSERT_TRUE(m.ok());
-  Crowd crowd(*m);
-  for (int i = 0; i < 20; ++i) {
-    float a = 2.0f * 3.14159265f * i / 20.0f, rad = 4.0f + (i % 3);
-    crowd.add(Character{glm::vec3(rad * std::sin(a), 0, rad * std::cos(a)), a + 1.5708f, 1.0f, 0, 0.1f * i, 1.0f});
-  }
-  ImpostorConfig cfg;
-  cfg.cache.posture_threshold = 0.0f;
-  cfg.cache.view_threshold_deg = 0.0f;
+  Crowd crowd = walker_ring(*m);
+  const ImpostorConfig cfg = refresh_always();
   FramePlanner planner(*m, cfg);
   auto renderer = Renderer::create(*m, cfg);
   ASSERT_TRUE(renderer.ok()) << renderer.error().message();
   auto target = OffscreenTarget::create(640, 512, 4);
   ASSERT_TRUE(target.ok());
-  SceneCamera cam;
-  cam.width = 640;
-  cam.height = 512;
-  cam.eye = {0, 6, 16};
-  cam.target = {0, 0.5f, 0};
-  cam.fov_y = glm::radians(45.0f);
+  const SceneCamera cam = ring_camera();
   for (int f = 0; f < 2; ++f) {
     float t = 0.1f * f;
     (*target)->bind(true);

@@ -40,6 +40,31 @@ struct SkinnedMesh {
   std::vector<uint8_t> part;
   std::vector<uint8_t> seam;
   size_t triangle_count() const { return indices.size() / 3; }
+
+  // The extremity part of the triangle whose indices start at `first_index` when all three of its
+  // vertices carry that one non-body part, else 0 (kBody). Needs `part`.
+  uint8_t extremity_part(size_t first_index) const {
+    uint8_t p = part[indices[first_index]];
+    return p != 0 && part[indices[first_index + 1]] == p && part[indices[first_index + 2]] == p ? p : 0;
+  }
+  size_t extremity_triangle_count() const {
+    if (part.size() != positions.size()) return 0;
+    size_t n = 0;
+    for (size_t t = 0; t < indices.size(); t += 3) n += extremity_part(t) != 0;
+    return n;
+  }
+  // Appends vertex `i` of `from` with every per-vertex attribute `from` carries (this mesh must
+  // carry the same ones); returns its index here.
+  uint32_t append_vertex(const SkinnedMesh& from, uint32_t i) {
+    positions.push_back(from.positions[i]);
+    if (!from.normals.empty()) normals.push_back(from.normals[i]);
+    if (!from.uvs.empty()) uvs.push_back(from.uvs[i]);
+    if (!from.joints.empty()) joints.push_back(from.joints[i]);
+    if (!from.weights.empty()) weights.push_back(from.weights[i]);
+    if (!from.part.empty()) part.push_back(from.part[i]);
+    if (!from.seam.empty()) seam.push_back(from.seam[i]);
+    return static_cast<uint32_t>(positions.size() - 1);
+  }
 };
 
 // What a LOD reached, measured against the implicit surface (metres and fractions of height).
