@@ -47,7 +47,6 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["psnr_db"] = r.psnr_db;
   j["psnr_min_db"] = r.psnr_min_db;
   j["ssim"] = r.ssim;
-  j["psnr_stored_db"] = r.psnr_stored_db;
   j["impostor_edges"] = s.impostor_edges;
   if (!s.snapshot_lod_from_screen) j["snapshot_lod"] = "window";
   if (!s.perspective_snapshots) j["snapshot_camera"] = "orthographic";

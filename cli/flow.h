@@ -61,9 +61,6 @@ struct FlowResult {
   double refresh_fraction = 0;              // mean snapshots / impostors
   double psnr_db = 0, ssim = 0;             // means over compared frames
   double psnr_min_db = 0;
-  // PSNR of the RGB as the frames store it (premultiplied by coverage, both paths), over the same
-  // pixels; psnr_db weights it by alpha once more, so coverage differences at edges count more.
-  double psnr_stored_db = 0;
   // Where the squared error comes from, over the compared frames (premultiplied RGB as in
   // psnr_db): pixels covered in both images, pixels partly covered in at least one (edges), and
   // pixels covered in one image only. mse per channel, pixels per frame.

@@ -116,7 +116,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   double g_ms = 0, i_ms = 0, refresh = 0, psnr_sum = 0, ssim_sum = 0, tri_g = 0, tri_s = 0, atlas_use = 0;
   double psnr_min = std::numeric_limits<double>::infinity();
   int compared = 0, atlas_pages = 0;
-  double class_se[3] = {0, 0, 0}, class_n[3] = {0, 0, 0}, se_stored = 0;
+  double class_se[3] = {0, 0, 0}, class_n[3] = {0, 0, 0};
   const int total = s.warmup + s.frames;
   for (int f = 0; f < total; ++f) {
     float t = f / s.fps;
@@ -178,9 +178,8 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
         if (p[3] == 0 && q[3] == 0) continue;
         double e = 0;
         for (int k = 0; k < 3; ++k) {
-          double x = p[k] * (p[3] / 255.0), y = q[k] * (q[3] / 255.0);
-          e += (x - y) * (x - y);
-          se_stored += (p[k] - q[k]) * (p[k] - q[k]);
+          double d = double(p[k]) - double(q[k]);  // premultiplied, as psnr_covered
+          e += d * d;
         }
         int c = (p[3] == 255 && q[3] == 255) ? 0 : (p[3] == 0 || q[3] == 0) ? 2 : 1;
         class_se[c] += e;
@@ -213,8 +212,6 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
     classes[c]->pixels = compared ? class_n[c] / compared : 0.0;
     classes[c]->share = se_all > 0 ? class_se[c] / se_all : 0.0;
   }
-  const double n_all = class_n[0] + class_n[1] + class_n[2];
-  out.psnr_stored_db = n_all > 0 && se_stored > 0 ? 10.0 * std::log10(255.0 * 255.0 * 3.0 * n_all / se_stored) : 99.0;
   out.geometry_triangles = tri_g / n;
   out.snapshot_triangles = tri_s / n;
   out.atlas_pixel_use = atlas_use / n;

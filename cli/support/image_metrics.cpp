@@ -13,10 +13,11 @@ double psnr_covered(const unsigned char* a, const unsigned char* b, int w, int h
     const unsigned char* p = a + 4 * i;
     const unsigned char* q = b + 4 * i;
     if (p[3] == 0 && q[3] == 0) continue;
+    // The frames hold premultiplied colours (a multisampled edge pixel is colour x coverage over
+    // a transparent clear), so a pixel covered in one image only counts in full as it is.
     for (int k = 0; k < 3; ++k) {
-      // Compare premultiplied colours so that a pixel covered in one image only counts fully.
-      double x = p[k] * (p[3] / 255.0), y = q[k] * (q[3] / 255.0);
-      se += (x - y) * (x - y);
+      double d = double(p[k]) - double(q[k]);
+      se += d * d;
     }
     n += 3;
   }
@@ -26,9 +27,8 @@ double psnr_covered(const unsigned char* a, const unsigned char* b, int w, int h
 }
 
 double ssim_covered(const unsigned char* a, const unsigned char* b, int w, int h) {
-  auto luma = [](const unsigned char* p) {
-    double al = p[3] / 255.0;
-    return (0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2]) * al;
+  auto luma = [](const unsigned char* p) {  // premultiplied, like the frames
+    return 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];
   };
   std::vector<double> la(static_cast<size_t>(w) * h), lb(la.size());
   std::vector<char> cov(la.size());

@@ -5,7 +5,8 @@
 
 namespace bb::cli {
 
-// PSNR in dB of the RGB channels over pixels covered (alpha > 0) in either RGBA8 image;
+// Both images hold premultiplied RGBA8 (colour x coverage), as the renderer's frames do.
+// PSNR in dB of the RGB channels over pixels covered (alpha > 0) in either image;
 // +infinity when they are equal there, 0 covered pixels gives +infinity too.
 double psnr_covered(const unsigned char* a, const unsigned char* b, int width, int height);
 

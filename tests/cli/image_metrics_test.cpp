@@ -17,6 +17,10 @@ TEST(ImageMetrics, PsnrIsExactOnATinyCase) {
   std::vector<unsigned char> c = {100, 100, 100, 255, 255, 255, 255, 255};
   double p = psnr_covered(a.data(), c.data(), 2, 1);
   EXPECT_NEAR(p, 10 * std::log10(255.0 * 255.0 / (255.0 * 255.0 / 2)), 1e-9);
+  // Frames are premultiplied: a half-covered edge pixel (colour x coverage) against an empty one
+  // differs by what it stores, not by that times its alpha again.
+  std::vector<unsigned char> e = {50, 50, 50, 128}, z = {0, 0, 0, 0};
+  EXPECT_NEAR(psnr_covered(e.data(), z.data(), 1, 1), 10 * std::log10(255.0 * 255.0 / 2500.0), 1e-9);
 }
 
 TEST(ImageMetrics, SsimIsOneForEqualImagesAndLowerForNoise) {
