@@ -1,6 +1,8 @@
 #include "bb/motion/bvh.h"
 
 #include <algorithm>
+#include <array>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <filesystem>
@@ -145,33 +147,131 @@ Result<BvhFile> parse_bvh(std::string_view text, std::string_view file) {
 
 namespace {
 
-// Our joint -> (BVH bone start, bone end) for the two CMU namings.
+// The BVH joints the retargeting reads, by role, and the names the common BVH conventions give
+// them: CMU's conversions (LeftUpLeg/LeftLeg/... and LeftHip/LeftKnee/...), the Daz-friendly
+// release (hip, abdomen, lThigh, lShin, lShldr, ...), the original ASF names (lfemur, ltibia,
+// lhumerus, ...), Mixamo (mixamorig:LeftUpLeg, ...) and engine-style suffixes (thigh_l, ...).
+// Names are compared normalized (see normalize_name). In a pattern '*' stands for the side:
+// "left" or "l" (left roles), "right" or "r" (right roles). Roles are resolved in this order and
+// a BVH joint serves one role only, so an ambiguous name ("LeftShoulder": the collar in one
+// convention, the upper arm in another) goes to the first role still open.
+enum Role {
+  kHips, kSpine0, kSpine1, kNeck0, kNeck1, kHead,
+  kLCollar, kLUpperArm, kLForearm, kLWrist, kLFingers, kLThigh, kLShin, kLFoot, kLToe,
+  kRCollar, kRUpperArm, kRForearm, kRWrist, kRFingers, kRThigh, kRShin, kRFoot, kRToe,
+  kRoleCount
+};
+struct RoleNames {
+  Role role;
+  std::vector<const char*> names;
+};
+const std::vector<RoleNames>& role_names() {
+  static const std::vector<RoleNames> central = {
+      {kHips, {"hips", "hip", "pelvis", "root"}},
+      {kSpine0, {"lowerback", "abdomen", "spine", "spine01", "waist"}},
+      {kSpine1, {"chest", "spine", "thorax", "spine1", "spine02", "upperback", "spine2"}},
+      {kNeck0, {"lowerneck", "neck", "neck01"}},
+      {kNeck1, {"neck1", "upperneck", "neck02", "neck2", "neck"}},
+      {kHead, {"head"}},
+  };
+  static const std::vector<RoleNames> side = {  // left roles; right ones are offset
+      {kLCollar, {"*collar", "*clavicle", "clavicle*", "*shoulder"}},
+      {kLUpperArm, {"*arm", "*uparm", "*upperarm", "upperarm*", "*shldr", "*humerus", "*shoulder"}},
+      {kLForearm, {"*forearm", "forearm*", "*elbow", "*lowerarm", "lowerarm*", "*radius"}},
+      {kLWrist, {"*wrist", "*hand", "hand*"}},
+      {kLFingers, {"*fingerbase", "*hand", "*handmiddle1", "*mid1", "*middle1", "middle01*", "*fingers"}},
+      {kLThigh, {"*upleg", "*thigh", "thigh*", "*upperleg", "upperleg*", "*femur", "*hip"}},
+      {kLShin, {"*leg", "*shin", "*knee", "*lowerleg", "lowerleg*", "calf*", "*calf", "*tibia"}},
+      {kLFoot, {"*foot", "foot*", "*ankle"}},
+      {kLToe, {"*toebase", "*toe", "*toes", "ball*", "toe*"}},
+  };
+  static const std::vector<RoleNames> all = [] {
+    std::vector<RoleNames> v = central;
+    for (int s = 0; s < 2; ++s)
+      for (const RoleNames& r : side) v.push_back({Role(r.role + s * (kRCollar - kLCollar)), r.names});
+    return v;
+  }();
+  return all;
+}
+bool is_right(Role r) { return r >= kRCollar; }
+
+// Lower case, without a namespace prefix ("mixamorig:") and without '_', '-', '.', ' '.
+std::string normalize_name(const std::string& name) {
+  std::string out;
+  size_t colon = name.rfind(':');
+  for (size_t i = colon == std::string::npos ? 0 : colon + 1; i < name.size(); ++i) {
+    char c = name[i];
+    if (c == '_' || c == '-' || c == '.' || c == ' ') continue;
+    out += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  }
+  return out;
+}
+
+// BVH joint index per role, -1 where the file has none (the fingers' and toes' roles fall back
+// to the first child of the wrist and foot, an end site if need be).
+std::array<int, kRoleCount> find_roles(const BvhFile& bvh) {
+  std::map<std::string, int> by_name;
+  for (size_t i = 0; i < bvh.joints.size(); ++i)
+    if (!bvh.joints[i].end_site) by_name.emplace(normalize_name(bvh.joints[i].name), static_cast<int>(i));
+  std::array<int, kRoleCount> at;
+  at.fill(-1);
+  std::vector<char> used(bvh.joints.size(), 0);
+  for (const RoleNames& r : role_names()) {
+    const char* sides[2][2] = {{"left", "l"}, {"right", "r"}};
+    for (const char* pattern : r.names) {
+      std::string p(pattern);
+      size_t star = p.find('*');
+      for (int k = 0; k < (star == std::string::npos ? 1 : 2) && at[r.role] < 0; ++k) {
+        std::string n = star == std::string::npos ? p : p.substr(0, star) + sides[is_right(r.role)][k] + p.substr(star + 1);
+        auto it = by_name.find(n);
+        if (it != by_name.end() && !used[it->second]) {
+          at[r.role] = it->second;
+          used[it->second] = 1;
+        }
+      }
+      if (at[r.role] >= 0) break;
+    }
+  }
+  if (at[kHips] < 0 && !bvh.joints.empty()) at[kHips] = 0;  // the root
+  auto first_child = [&](int j) {
+    for (size_t i = 0; i < bvh.joints.size(); ++i)
+      if (bvh.joints[i].parent == j) return static_cast<int>(i);
+    return -1;
+  };
+  for (int s = 0; s < 2; ++s) {
+    int o = s * (kRCollar - kLCollar);
+    if (at[kLFingers + o] < 0 && at[kLWrist + o] >= 0) at[kLFingers + o] = first_child(at[kLWrist + o]);
+    if (at[kLToe + o] < 0 && at[kLFoot + o] >= 0) at[kLToe + o] = first_child(at[kLFoot + o]);
+  }
+  return at;
+}
+
+// Our joint -> the BVH bone (start role, end role) it follows; `alt` is the end when `to` is
+// missing (a neck of one segment).
 struct Link {
   const char* ours;
-  const char* from01;
-  const char* to01;
-  const char* from131;
-  const char* to131;
+  Role from, to;
+  Role alt = kRoleCount;
 };
 const Link kLinks[] = {
-    {"vl5", "LowerBack", "Spine", "lowerback", "Chest"},
-    {"vt10", "Spine", "Neck", "Chest", "lowerneck"},
-    {"vc7", "Neck", "Neck1", "lowerneck", "Neck"},
-    {"skullbase", "Neck1", "Head", "Neck", "Head"},
-    {"l_sternoclavicular", "LeftShoulder", "LeftArm", "LeftCollar", "LeftShoulder"},
-    {"l_shoulder", "LeftArm", "LeftForeArm", "LeftShoulder", "LeftElbow"},
-    {"l_elbow", "LeftForeArm", "LeftHand", "LeftElbow", "LeftWrist"},
-    {"l_wrist", "LeftHand", "LeftFingerBase", "LeftWrist", "lhand"},
-    {"r_sternoclavicular", "RightShoulder", "RightArm", "RightCollar", "RightShoulder"},
-    {"r_shoulder", "RightArm", "RightForeArm", "RightShoulder", "RightElbow"},
-    {"r_elbow", "RightForeArm", "RightHand", "RightElbow", "RightWrist"},
-    {"r_wrist", "RightHand", "RightFingerBase", "RightWrist", "rhand"},
-    {"l_hip", "LeftUpLeg", "LeftLeg", "LeftHip", "LeftKnee"},
-    {"l_knee", "LeftLeg", "LeftFoot", "LeftKnee", "LeftAnkle"},
-    {"l_ankle", "LeftFoot", "LeftToeBase", "LeftAnkle", "LeftToe"},
-    {"r_hip", "RightUpLeg", "RightLeg", "RightHip", "RightKnee"},
-    {"r_knee", "RightLeg", "RightFoot", "RightKnee", "RightAnkle"},
-    {"r_ankle", "RightFoot", "RightToeBase", "RightAnkle", "RightToe"},
+    {"vl5", kSpine0, kSpine1},
+    {"vt10", kSpine1, kNeck0},
+    {"vc7", kNeck0, kNeck1, kHead},
+    {"skullbase", kNeck1, kHead},
+    {"l_sternoclavicular", kLCollar, kLUpperArm},
+    {"l_shoulder", kLUpperArm, kLForearm},
+    {"l_elbow", kLForearm, kLWrist},
+    {"l_wrist", kLWrist, kLFingers},
+    {"r_sternoclavicular", kRCollar, kRUpperArm},
+    {"r_shoulder", kRUpperArm, kRForearm},
+    {"r_elbow", kRForearm, kRWrist},
+    {"r_wrist", kRWrist, kRFingers},
+    {"l_hip", kLThigh, kLShin},
+    {"l_knee", kLShin, kLFoot},
+    {"l_ankle", kLFoot, kLToe},
+    {"r_hip", kRThigh, kRShin},
+    {"r_knee", kRShin, kRFoot},
+    {"r_ankle", kRFoot, kRToe},
 };
 // Our child joint whose direction from `ours` is the link.
 const char* child_of(const std::string& ours) {
@@ -297,22 +397,23 @@ std::vector<glm::vec3> world_positions(const BvhFile& bvh, size_t frame) {
 }
 
 Result<Clip> retarget(const BvhFile& bvh, const modeler::Skeleton& sk, const std::string& name, std::string_view file) {
-  std::map<std::string, int> by_name;
-  for (size_t i = 0; i < bvh.joints.size(); ++i) by_name[bvh.joints[i].name] = static_cast<int>(i);
-  bool cmu01 = by_name.count("LeftUpLeg"), cmu131 = by_name.count("LeftHip");
-  if (!cmu01 && !cmu131)
-    return Error{std::string(file), "HIERARCHY",
-                 "unknown joint naming: expected the CMU names (LeftUpLeg/LeftLeg/... or LeftHip/LeftKnee/...)"};
-  int hips = by_name.count("Hips") ? by_name["Hips"] : 0;
+  const std::array<int, kRoleCount> at = find_roles(bvh);
+  for (Role r : {kLThigh, kLShin, kLFoot, kRThigh, kRShin, kRFoot})
+    if (at[r] < 0)
+      return Error{std::string(file), "HIERARCHY",
+                   "unknown joint naming: no thigh, shin and foot on both sides (tried the CMU, Daz, ASF, "
+                   "Mixamo and thigh_l/calf_l names, e.g. LeftUpLeg/LeftLeg/LeftFoot, LeftHip/LeftKnee/LeftAnkle, "
+                   "lThigh/lShin/lFoot, lfemur/ltibia/lfoot)"};
+  const int hips = at[kHips];
   struct Mapped { int ours, child, from, to, next = -1; };  // next: end of the child's bone
   std::vector<Mapped> links;
   for (const Link& l : kLinks) {
-    const char* f = cmu01 ? l.from01 : l.from131;
-    const char* t = cmu01 ? l.to01 : l.to131;
     int o = sk.find_joint(l.ours), c = child_of(l.ours) ? sk.find_joint(child_of(l.ours)) : -1;
     if (o < 0 || c < 0) return Error{std::string(file), "", std::string("target skeleton lacks joint ") + l.ours};
-    if (!by_name.count(f) || !by_name.count(t)) continue;  // not in this file: stays neutral
-    links.push_back({o, c, by_name[f], by_name[t]});
+    int f = at[l.from], t = at[l.to];
+    if (t < 0 && l.alt != kRoleCount) t = at[l.alt];
+    if (f < 0 || t < 0) continue;  // not in this file: stays neutral
+    links.push_back({o, c, f, t});
   }
   std::sort(links.begin(), links.end(), [](const Mapped& a, const Mapped& b) { return a.ours < b.ours; });
   // Hips and shoulders also turn so that the knee's and elbow's hinge lies in the plane the BVH
@@ -327,7 +428,7 @@ Result<Clip> retarget(const BvhFile& bvh, const modeler::Skeleton& sk, const std
   auto bvh_fk = [&](const std::vector<float>* frame) { bvh_forward(bvh, frame, brot, bpos); };
   // Scale: our hip-to-ankle length over the BVH's, in the rest poses.
   bvh_fk(nullptr);
-  int bl_hip = by_name[cmu01 ? "LeftUpLeg" : "LeftHip"], bl_ankle = by_name[cmu01 ? "LeftFoot" : "LeftAnkle"];
+  const int bl_hip = at[kLThigh], bl_ankle = at[kLFoot];
   float bvh_leg = glm::length(bpos[bl_hip] - bpos[bl_ankle]);
   auto rest = sk.world_transforms(sk.neutral());
   float our_leg = glm::length(glm::vec3(rest[sk.find_joint("l_hip")][3] - rest[sk.find_joint("l_ankle")][3]));
@@ -335,7 +436,7 @@ Result<Clip> retarget(const BvhFile& bvh, const modeler::Skeleton& sk, const std
   float scale = our_leg / bvh_leg;
   // Ground: the lowest ankle in the first frame sits where ours does in the neutral posture.
   bvh_fk(&bvh.frames[0]);
-  float bvh_ground = std::min(bpos[bl_ankle].y, bpos[by_name[cmu01 ? "RightFoot" : "RightAnkle"]].y);
+  float bvh_ground = std::min(bpos[bl_ankle].y, bpos[at[kRFoot]].y);
   float our_ankle_y = rest[sk.find_joint("l_ankle")][3].y;
   glm::vec3 root_rest = sk.joints()[0].offset;
 

@@ -1,4 +1,6 @@
 #include <cmath>
+#include <cstring>
+#include <map>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -114,4 +116,80 @@ TEST(Bvh, CmuClipsKeepTheirFramesAndRateAndWalk) {
   // The body travels (the root follows the hips, scaled).
   auto first = sk.world_transforms(clip->frames.front()), last = sk.world_transforms(clip->frames.back());
   EXPECT_GT(glm::length(glm::vec3(last[0][3] - first[0][3])), 1.0f);
+}
+
+namespace {
+
+// The file's text with its joints renamed (names not in `map` keep theirs; `prefix` goes before
+// every name), as another convention would name them.
+std::string renamed(const std::string& text, const std::map<std::string, std::string>& map,
+                    const std::string& prefix = "") {
+  std::istringstream in(text);
+  std::string out, line;
+  while (std::getline(in, line)) {
+    size_t k = line.find_first_not_of(" \t");
+    for (const char* key : {"ROOT ", "JOINT "}) {
+      if (k == std::string::npos || line.compare(k, std::strlen(key), key) != 0) continue;
+      size_t b = k + std::strlen(key), e = line.find_first_of(" \t\r", b);
+      std::string name = line.substr(b, e == std::string::npos ? std::string::npos : e - b);
+      auto it = map.find(name);
+      line = line.substr(0, b) + prefix + (it == map.end() ? name : it->second) +
+             (e == std::string::npos ? "" : line.substr(e));
+    }
+    out += line + "\n";
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(Bvh, OtherJointNamingsRetargetTheSame) {
+  if (!std::filesystem::exists(data("01_01.bvh"))) GTEST_SKIP() << "../shared/data/bvh is absent";
+  const auto& sk = modeler::default_skeleton();
+  std::ifstream in(data("01_01.bvh"), std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string text = ss.str();
+  auto reference = motion::parse_bvh(text, "01_01.bvh");
+  ASSERT_TRUE(reference);
+  auto ref = motion::retarget(*reference, sk, "01_01");
+  ASSERT_TRUE(ref) << ref.error().message();
+  // The same capture as the Daz-friendly release, the original ASF skeleton and Mixamo name it:
+  // every role lands on the same captured joint, so the clip is the same, value for value.
+  std::map<std::string, std::string> daz = {
+      {"Hips", "hip"}, {"LowerBack", "abdomen"}, {"Spine", "chest"}, {"Neck", "neck"}, {"Head", "head"},
+      {"LeftShoulder", "lCollar"}, {"LeftArm", "lShldr"}, {"LeftForeArm", "lForeArm"}, {"LeftHand", "lHand"},
+      {"LeftFingerBase", "lMid1"}, {"LeftUpLeg", "lThigh"}, {"LeftLeg", "lShin"}, {"LeftFoot", "lFoot"},
+      {"LeftToeBase", "lToe"}, {"RightShoulder", "rCollar"}, {"RightArm", "rShldr"}, {"RightForeArm", "rForeArm"},
+      {"RightHand", "rHand"}, {"RightFingerBase", "rMid1"}, {"RightUpLeg", "rThigh"}, {"RightLeg", "rShin"},
+      {"RightFoot", "rFoot"}, {"RightToeBase", "rToe"}};
+  std::map<std::string, std::string> asf = {
+      {"Hips", "root"}, {"LowerBack", "lowerback"}, {"Spine", "thorax"}, {"Spine1", "upperback"},
+      {"Neck", "lowerneck"}, {"Neck1", "upperneck"}, {"Head", "head"}, {"LeftShoulder", "lclavicle"},
+      {"LeftArm", "lhumerus"}, {"LeftForeArm", "lradius"}, {"LeftHand", "lwrist"}, {"LeftFingerBase", "lhand"},
+      {"LeftUpLeg", "lfemur"}, {"LeftLeg", "ltibia"}, {"LeftFoot", "lfoot"}, {"LeftToeBase", "ltoes"},
+      {"RightShoulder", "rclavicle"}, {"RightArm", "rhumerus"}, {"RightForeArm", "rradius"}, {"RightHand", "rwrist"},
+      {"RightFingerBase", "rhand"}, {"RightUpLeg", "rfemur"}, {"RightLeg", "rtibia"}, {"RightFoot", "rfoot"},
+      {"RightToeBase", "rtoes"}, {"LFingers", "lfingers"}, {"RFingers", "rfingers"}};
+  struct Variant { const char* name; std::string text; } variants[] = {
+      {"daz", renamed(text, daz)}, {"asf", renamed(text, asf)}, {"mixamo", renamed(text, {}, "mixamorig:")}};
+  for (const auto& v : variants) {
+    auto bvh = motion::parse_bvh(v.text, v.name);
+    ASSERT_TRUE(bvh) << bvh.error().message();
+    auto clip = motion::retarget(*bvh, sk, "01_01");
+    ASSERT_TRUE(clip) << v.name << ": " << clip.error().message();
+    ASSERT_EQ(clip->frames.size(), ref->frames.size()) << v.name;
+    EXPECT_EQ(clip->fps, ref->fps);
+    size_t differing = 0;
+    for (size_t f = 0; f < ref->frames.size(); ++f) differing += clip->frames[f] != ref->frames[f];
+    EXPECT_EQ(differing, 0u) << v.name;
+  }
+  // A skeleton whose legs match no convention is refused with the file, the place and the reason.
+  auto odd = motion::parse_bvh(renamed(text, {{"LeftUpLeg", "Oberschenkel_L"}, {"RightUpLeg", "Oberschenkel_R"}}),
+                               "odd.bvh");
+  ASSERT_TRUE(odd);
+  auto refused = motion::retarget(*odd, sk, "odd", "odd.bvh");
+  ASSERT_FALSE(refused);
+  EXPECT_NE(refused.error().message().find("odd.bvh"), std::string::npos);
+  EXPECT_NE(refused.error().message().find("unknown joint naming"), std::string::npos);
 }

@@ -1,14 +1,18 @@
 // Motion capture: BVH import, retargeted onto the bodybuilder skeleton.
 //
 // Parsing accepts LF and CRLF files, tabs, any rotation order per joint and any subset of the six
-// channels; errors name the file, the line and the reason. Retargeting maps the BVH bones by name
-// (the two CMU namings: Hips/LHipJoint/LeftUpLeg/LeftLeg/LeftFoot/LeftToeBase/LowerBack/Spine/
-// Spine1/Neck/Neck1/Head/LeftShoulder/LeftArm/LeftForeArm/LeftHand..., and
-// Hips/LeftHip/LeftKnee/LeftAnkle/LeftToe/lowerback/Chest/Chest2/lowerneck/Neck/Head/LeftCollar/
-// LeftShoulder/LeftElbow/LeftWrist...), takes the root's full rotation and translation (scaled by
-// the ratio of leg lengths) and, for every other mapped joint, turns our link to point the way the
-// BVH bone points (a least-squares fit of the joint's own DOFs, clamped to their limits; the twist
-// about a bone is not transferred). The clip keeps the BVH's frame count and frame rate.
+// channels; errors name the file, the line and the reason. Retargeting finds the BVH bones by role
+// (hips, spine, neck, head, collar, upper arm, forearm, wrist, thigh, shin, foot, toe) under the
+// names the common conventions give them, compared without case, '_', '-', '.' and namespace
+// prefixes: CMU's two conversions (LeftUpLeg/LeftLeg/LeftFoot/LowerBack/Spine/LeftShoulder/LeftArm
+// ... and LeftHip/LeftKnee/LeftAnkle/lowerback/Chest/LeftCollar/LeftShoulder/LeftElbow ...), the
+// Daz-friendly release (hip/abdomen/chest/lThigh/lShin/lFoot/lCollar/lShldr/lForeArm/lHand), the
+// original ASF names (lfemur/ltibia/lfoot/lclavicle/lhumerus/lradius/lwrist), Mixamo
+// (mixamorig:LeftUpLeg ...) and thigh_l/calf_l/foot_l; a file without thighs, shins and feet on both
+// sides is refused. It takes the root's full rotation and translation (scaled by the ratio of leg
+// lengths) and, for every other mapped joint, turns our link to point the way the BVH bone points
+// (a least-squares fit of the joint's own DOFs, clamped to their limits; the twist about a bone is
+// not transferred). The clip keeps the BVH's frame count and frame rate.
 #pragma once
 
 #include <string>
