@@ -71,7 +71,6 @@ tinygltf::Value to_value(const mesher::LodReport& r, int level) {
   o["closed"] = tinygltf::Value(r.closed);
   o["manifold"] = tinygltf::Value(r.manifold);
   o["self_intersections"] = tinygltf::Value(static_cast<int>(r.self_intersection_count));
-  o["seconds"] = tinygltf::Value(r.seconds);
   return tinygltf::Value(o);
 }
 
