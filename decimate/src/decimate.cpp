@@ -93,7 +93,20 @@ Result<mesher::SkinnedMesh> decimate(const mesher::SkinnedMesh& in, const Option
       dec.module(weights).set_max_difference(opt.max_weight_difference);
     }
     if (!dec.initialize()) return Error{"", "", "OpenMesh decimater failed to initialize"};
-    dec.decimate_to_faces(opt.target_triangles);
+    dec.decimate_in_passes(opt.target_triangles, dec.module(quadric));
+    {
+      // Each survivor may take the place of one of the input vertices it absorbed (position and
+      // every attribute), the one nearest to the planes it stands for.
+      const bool rule = skinned && opt.max_weight_difference < 2.0f;
+      dec.module(quadric).polish(
+          [&](Mesh::VertexHandle v, Mesh::VertexHandle w) {
+            return !rule || detail::influence_distance(mesh.property(influences, v), mesh.property(influences, w)) <=
+                                opt.max_weight_difference;
+          },
+          [&](Mesh::VertexHandle v, Mesh::VertexHandle w) {
+            mesh.property(source, v) = mesh.property(source, w);
+          });
+    }
   }
   mesh.garbage_collection();
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

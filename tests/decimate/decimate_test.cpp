@@ -151,6 +151,33 @@ TEST(Decimate, ClosedTubeStaysClosedOrientedAndReportsItsError) {
   }
 }
 
+TEST(Decimate, SurvivorsAreInputVerticesWithAllTheirAttributes) {
+  // The passes and the final polish (a survivor may take the place of an input vertex it
+  // absorbed) never invent a vertex nor mix attributes of different input vertices.
+  SkinnedMesh t = tube(41, 24);
+  t.uvs.resize(t.positions.size());
+  for (size_t i = 0; i < t.positions.size(); ++i) t.uvs[i] = {float(i), float(i) * 0.5f};
+  Options opt;
+  opt.target_triangles = t.triangle_count() / 10;
+  auto r = decimate(t, opt);
+  ASSERT_TRUE(r) << r.error().message();
+  EXPECT_LE(r->triangle_count(), opt.target_triangles);
+  EXPECT_GE(r->triangle_count(), opt.target_triangles - 2);
+  ASSERT_EQ(r->uvs.size(), r->positions.size());
+  std::set<size_t> sources;
+  for (size_t i = 0; i < r->positions.size(); ++i) {
+    size_t s = static_cast<size_t>(r->uvs[i].x);  // the uv names the input vertex
+    ASSERT_LT(s, t.positions.size());
+    EXPECT_EQ(r->positions[i], t.positions[s]);
+    EXPECT_EQ(r->normals[i], t.normals[s]);
+    EXPECT_EQ(r->joints[i], t.joints[s]);
+    EXPECT_EQ(r->weights[i], t.weights[s]);
+    EXPECT_EQ(r->uvs[i], t.uvs[s]);
+    EXPECT_TRUE(sources.insert(s).second);  // no input vertex twice
+  }
+  EXPECT_TRUE(closed_and_oriented(*r));
+}
+
 TEST(Decimate, SkinWeightRuleKeepsTheJointRing) {
   SkinnedMesh t = tube(41, 24);
   auto count_blended = [](const SkinnedMesh& m) {
