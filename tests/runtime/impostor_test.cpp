@@ -435,6 +435,34 @@ TEST(BodyParts, CardFollowsItsBoneWithoutARefresh) {
   EXPECT_EQ(p2.stats.snapshots, 1);
 }
 
+TEST(BodyParts, ViewTestIgnoresTheCardsRollButNotItsTilt) {
+  Model m = hinge_model();
+  Crowd crowd(m);
+  crowd.add(Character{glm::vec3(0, 0, 0), 0.0f, 1.0f, 0, 0.0f, 1.0f});
+  ImpostorConfig cfg;
+  cfg.part_cards = true;
+  cfg.cache.posture_test = false;
+  cfg.cache.view_threshold_deg = 8.0f;
+  FramePlanner planner(m, cfg);
+  SceneCamera cam;
+  cam.eye = {0, 1.5f, 30};
+  cam.target = {0, 1.5f, 0};
+  EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.part_snapshots, 2);
+  // The arm turns 45 degrees about the line of sight: its card rolls with it, no snapshot.
+  const FrameStats s1 = planner.plan(crowd, cam, 0.5f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(s1.part_snapshots, 0);
+  EXPECT_EQ(s1.refresh_fraction, 0.0f);
+  // The character turns 10 degrees about +Y: both cards tilt past 8 degrees, both are refreshed.
+  crowd[0].yaw = glm::radians(10.0f);
+  const FrameStats s2 = planner.plan(crowd, cam, 0.5f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(s2.part_snapshots, 2);
+  EXPECT_EQ(s2.view_refreshes, 1);
+  EXPECT_FLOAT_EQ(s2.refresh_fraction, 1.0f);
+  // 6 degrees more: under the threshold again.
+  crowd[0].yaw = glm::radians(16.0f);
+  EXPECT_EQ(planner.plan(crowd, cam, 0.5f, RenderMode::kImpostor).stats.part_snapshots, 0);
+}
+
 TEST(BodyParts, CesiumManHasLimbParts) {
   std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data absent: " << path;

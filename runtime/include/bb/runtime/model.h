@@ -186,12 +186,14 @@ class Model {
   // Rebuilds the baked data at `rate` frames per second (load does this at 60), and the body parts.
   void bake(float rate = 60.0f);
 
-  // Body parts (at least one; one = the whole body) and their triangles per level. Automatic: a
-  // skin joint starts a new part when its subtree holds at least 2.5 % of the skin weight and it
-  // turns more than 25 degrees relative to its parent's part over the clips (hips, thighs, shins,
-  // upper arms, forearms of a walking human; the head and spine stay with the torso). A triangle
-  // belongs to the part with most of its vertices' weight, and also to every part that weighs
-  // 0.3 or more on one of its vertices. A model with no clip, or where nothing moves, has one part.
+  // Body parts (at least one; one = the whole body; at most kMaxBodyParts) and their triangles
+  // per level. Automatic: a skin joint starts a new part when its subtree holds at least 1.5 % of
+  // the skin weight and it turns more than 12 degrees relative to its parent's part over the clips
+  // (our walking body: root (pelvis), chest, thighs, shins, feet, upper arms, forearms+hands; the
+  // neck and head stay with the chest). Parts with under 0.5 % of the weight of their own join
+  // their parent's. A triangle belongs to the part with most of its vertices' weight, and also to
+  // every part that weighs 0.7 or more on one of its vertices (so cards overlap a little at the
+  // joints). A model with no clip, or where nothing turns, has one part.
   std::span<const BodyPart> body_parts() const { return parts_; }
   const PartIndices& part_indices(int lod) const { return part_indices_[lod]; }
   // Replaces the automatic parts: `bones[k]` are the palette entries that start part k (the first
