@@ -82,14 +82,23 @@ struct ImpostorConfig {
   // replaces), or the level that matches the window size (false: section 4.3 literally; finer,
   // so costlier, when the window is larger than the character).
   bool snapshot_lod_from_screen = true;
-  // Part cards (the paper's section 7, item 2): each body part of Model::body_parts (torso+head,
-  // upper arms, forearms+hands, thighs, shins+feet for a human) gets its own snapshot of its own
-  // triangles, in its own window, drawn as its own card with depth. The card is the plane through
-  // the part's centre facing the eye at snapshot time; until the next snapshot it is carried by
-  // the part's bone (current bone matrix x inverse of the one at snapshot time), so the limbs keep
-  // following the animation and the character's turning; the depth test orders the parts. The
-  // cache tests stay per character (a refresh takes all its parts). A model with one part draws
-  // ordinary impostors.
+  // Part cards (the paper's section 7, item 2): each body part of Model::body_parts (our body:
+  // pelvis, chest+head, thighs, shins, feet, upper arms, forearms+hands) gets its own snapshot of
+  // its own triangles, in its own window, drawn as its own card with depth. The card is the plane
+  // through the part's centre facing the eye at snapshot time; until the next snapshot it is
+  // carried by the part's bone (current bone matrix x inverse of the one at snapshot time), so the
+  // limbs keep following the animation and the character's turning, and the depth test orders
+  // the parts. The view test is per part: the angle between the card's carried normal and the
+  // line of sight (its tilt; a roll about the line of sight is reproduced exactly), against
+  // cache.view_threshold_deg; the posture test stays per character (all its parts). FrameStats::
+  // refresh_fraction then counts cards. A model with one part draws ordinary impostors.
+  // Flow test bed (20 humans, 1280x1024, llvmpipe, posture off, view 8 degrees): PSNR against
+  // geometry 24.0 dB instead of 12.6 (SSIM 0.91 instead of 0.42), 20 % of the cards refreshed
+  // per frame instead of 5 % of the impostors, impostor/geometry time 0.32 instead of 0.19; with
+  // 2 texels per pixel + blending 26.0 dB (SSIM 0.95) at 0.60 instead of 12.5 dB at 0.22. At 5
+  // degrees 24.8 / 27.7 dB, at 17 degrees 21.6 / 22.4 dB. Every card fresh: 25.8 dB (whole
+  // impostors 26.2; 30.4 against 31.7 with 2 texels + blending). Off by default: far better
+  // quality between refreshes, but short of 28 dB at 8 degrees and slower.
   bool part_cards = false;
 };
 
