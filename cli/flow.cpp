@@ -51,6 +51,10 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   if (!s.snapshot_lod_from_screen) j["snapshot_lod"] = "window";
   if (!s.perspective_snapshots) j["snapshot_camera"] = "orthographic";
   if (s.hold_poses) j["hold_poses"] = true;
+  if (s.part_cards) {
+    j["impostor_parts"] = r.parts;
+    j["part_cards_per_frame"] = r.part_cards;
+  }
   auto split = [](const FlowResult::ErrorClass& c) {
     return ordered_json{{"mse", c.mse}, {"pixels", c.pixels}, {"share", c.share}};
   };
@@ -129,6 +133,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   s.snapshot_lod_from_screen = a.snapshot_lod == "screen";
   s.perspective_snapshots = a.snapshot_camera == "perspective";
   s.hold_poses = a.hold_poses;
+  s.part_cards = a.impostor_parts;
   s.distance_weighting = a.distance_weighting;
   s.orbit_deg_per_s = a.orbit;
   s.msaa = a.msaa;
@@ -312,6 +317,8 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--snapshot-camera", a->snapshot_camera, "Snapshot camera: perspective (from the eye) or orthographic")
       ->capture_default_str();
   cmd->add_flag("--hold-poses", a->hold_poses, "Every human keeps one pose while walking (isolates the pose lag)");
+  cmd->add_flag("--impostor-parts", a->impostor_parts,
+                "One impostor card per body part, carried by its bone between snapshots (less pose and view lag)");
   cmd->add_option("--sweep", a->sweep, "Sweep the posture threshold (view off) or the view threshold (posture off)");
   cmd->add_flag("--scaling", a->scaling, "Also measure both paths from 20 to 10,000 humans");
   cmd->add_option("--scaling-humans", a->scaling_list, "Crowd sizes of --scaling")->capture_default_str();

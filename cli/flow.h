@@ -44,6 +44,7 @@ struct FlowSettings {
   bool snapshot_lod_from_screen = true;     // false: the LOD that matches the window (section 4.3)
   bool perspective_snapshots = true;        // false: the paper's orthographic snapshot camera
   bool hold_poses = false;                  // every human keeps one pose (no pose lag)
+  bool part_cards = false;                  // ImpostorConfig::part_cards (one card per body part)
   int clip = -1;                 // -1: a clip named like "walk" if any, else 0
   float clip_speed_mps = 0;      // speed the clip walks at; 0: from the clip name "..._1.20mps" or none
   std::vector<int> keep_frames;  // measured frame indices whose images are returned
@@ -71,6 +72,9 @@ struct FlowResult {
   double atlas_pixel_use = 0;
   int atlas_pages = 0;
   std::string device;
+  // With part cards: the name of each body part's bone (the model's automatic decomposition).
+  std::vector<std::string> parts;
+  double part_cards = 0;  // mean cards drawn per impostor frame
   std::vector<FlowFrameImages> images;
 };
 
@@ -87,6 +91,7 @@ struct FlowArgs {
   float texels_per_pixel = 1.0f;  // see FlowSettings
   std::string impostor_edges = "coverage", snapshot_lod = "screen", snapshot_camera = "perspective";
   bool hold_poses = false;
+  bool impostor_parts = false;
   bool quiet = false;  // no summary on stdout (the demo prints its own)
   std::string scaling_list = "20,100,500,1000,2000,5000,10000";
   int scaling_frames = 10;

@@ -49,6 +49,8 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   out.width = s.width;
   out.height = s.height;
   out.device = device;
+  if (s.part_cards)
+    for (const auto& p : model.body_parts()) out.parts.push_back(model.nodes[model.palette[p.bone].node].name);
 
   ImpostorConfig config;
   config.cache.posture_test = s.posture_test;
@@ -59,6 +61,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   config.texels_per_pixel = s.texels_per_pixel;
   config.snapshot_lod_from_screen = s.snapshot_lod_from_screen;
   config.perspective_snapshots = s.perspective_snapshots;
+  config.part_cards = s.part_cards;
   DrawOptions draw_options;
   draw_options.edges = s.impostor_edges == "coverage"  ? ImpostorEdges::kAlphaToCoverage
                        : s.impostor_edges == "test"    ? ImpostorEdges::kAlphaTest
@@ -113,7 +116,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   cam.near_plane = 0.05f * unit;
   cam.far_plane = cam_dist * 4;
 
-  double g_ms = 0, i_ms = 0, refresh = 0, psnr_sum = 0, ssim_sum = 0, tri_g = 0, tri_s = 0, atlas_use = 0;
+  double g_ms = 0, i_ms = 0, refresh = 0, psnr_sum = 0, ssim_sum = 0, tri_g = 0, tri_s = 0, atlas_use = 0, cards = 0;
   double psnr_min = std::numeric_limits<double>::infinity();
   int compared = 0, atlas_pages = 0;
   double class_se[3] = {0, 0, 0}, class_n[3] = {0, 0, 0};
@@ -163,6 +166,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
         i_ms += ms;
         refresh += plan.stats.refresh_fraction;
         tri_s += plan.stats.snapshot_triangles;
+        cards += plan.stats.part_cards;
         atlas_use += plan.stats.atlas_pixel_use;
         atlas_pages = std::max(atlas_pages, plan.stats.atlas_pages_used);
       }
@@ -214,6 +218,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   }
   out.geometry_triangles = tri_g / n;
   out.snapshot_triangles = tri_s / n;
+  out.part_cards = cards / n;
   out.atlas_pixel_use = atlas_use / n;
   out.atlas_pages = atlas_pages;
   return out;

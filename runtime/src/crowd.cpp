@@ -42,6 +42,23 @@ int FramePlanner::lod_for(float pixels, int viewport_height) const {
 const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode) {
   const Model& m = *model_;
   const std::size_t n = crowd.size();
+  // Part cards on or off: start over with the other kind of windows.
+  const int want_parts = config_.part_cards ? static_cast<int>(m.body_parts().size()) : 1;
+  if (want_parts != parts_) {
+    for (auto& c : cache_) {
+      if (c.window.valid()) atlas_.release(c.window);
+      c = CacheState{};
+    }
+    for (auto& pc : part_cache_)
+      if (pc.window.valid()) atlas_.release(pc.window);
+    part_cache_.clear();
+    parts_ = want_parts;
+  }
+  if (parts_ > 1 && part_cache_.size() != n * parts_) {
+    for (std::size_t k = n * parts_; k < part_cache_.size(); ++k)
+      if (part_cache_[k].window.valid()) atlas_.release(part_cache_[k].window);
+    part_cache_.resize(n * parts_);
+  }
   if (cache_.size() < n) cache_.resize(n);
   if (cache_.size() > n) {  // characters removed: give their windows back
     for (std::size_t i = n; i < cache_.size(); ++i)
@@ -51,7 +68,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
   for (auto& g : plan_.geometry) g.clear();
   for (auto& s : plan_.snapshots) s.clear();
   plan_.billboards.clear();
-  if (plan_.billboards.capacity() < n) plan_.billboards.reserve(n);
+  if (plan_.billboards.capacity() < n * parts_) plan_.billboards.reserve(n * parts_);
   plan_.camera = camera;
   FrameStats st;
   st.characters = static_cast<int>(n);
@@ -104,7 +121,9 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
     const float pixels = 2.0f * radius * ppm1 / std::max(depth, 1e-3f);
 
     bool as_geometry = !impostor_mode || (mode == RenderMode::kAuto && pixels > switch_px);
-    if (!as_geometry) {
+    if (!as_geometry && parts_ > 1) {
+      as_geometry = !plan_parts(i, ch, bc, f0, f1, blend, inst, ta, radius, pixels, camera, st);
+    } else if (!as_geometry) {
       CacheState& cs = cache_[i];
       const int wclass = choose_window(config_.windows, pixels * config_.texels_per_pixel);
       bool refresh = !cs.valid;
@@ -219,12 +238,182 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
     }
   }
   st.refresh_fraction = st.impostors > 0 ? static_cast<float>(st.snapshots) / static_cast<float>(st.impostors) : 0.0f;
+  if (st.part_cards > 0) st.refresh_fraction = static_cast<float>(st.part_snapshots) / static_cast<float>(st.part_cards);
   st.atlas_pages = atlas_.max_pages();
   st.atlas_pages_used = atlas_.pages_used();
   st.atlas_windows_used = atlas_.windows_used();
   st.atlas_pixel_use = atlas_.pixel_use();
   plan_.stats = st;
   return plan_;
+}
+
+bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedClip& bc, int f0, int f1, float blend,
+                              const InstanceGpu& inst, const glm::vec3& ta, float radius, float pixels,
+                              const SceneCamera& camera, FrameStats& st) {
+  (void)radius;
+  const Model& m = *model_;
+  const auto parts = m.body_parts();
+  const int np = static_cast<int>(m.palette.size());
+  const int count = std::min(parts_, kMaxBodyParts);
+  CacheState& cs = cache_[i];
+  PartCache* pcs = &part_cache_[i * parts_];
+  const glm::vec3 fwd = glm::normalize(camera.target - camera.eye);
+  const float ppm1 = camera.pixels_per_metre(1.0f);
+  const float page = static_cast<float>(atlas_.page_size());
+  const auto pal = m.baked_palette();
+  // Character placement x the part's bone matrix now (model space -> world).
+  const float cy = std::cos(ch.yaw), sy = std::sin(ch.yaw), sc = ch.scale;
+  const glm::mat4 place(glm::vec4(cy * sc, 0, -sy * sc, 0), glm::vec4(0, sc, 0, 0), glm::vec4(sy * sc, 0, cy * sc, 0),
+                        glm::vec4(ch.position, 1));
+  std::array<glm::mat4, kMaxBodyParts> bone;
+  std::array<glm::vec3, kMaxBodyParts> centre;
+  std::array<bool, kMaxBodyParts> due;
+  const bool all = !cs.valid;
+  if (all) ++st.new_snapshots;
+  bool window_change = false;
+  for (int p = 0; p < count; ++p) {
+    const glm::vec4* a = &pal[((bc.first_row + f0) * static_cast<std::size_t>(np) + parts[p].bone) * 3];
+    const glm::vec4* b = &pal[((bc.first_row + f1) * static_cast<std::size_t>(np) + parts[p].bone) * 3];
+    glm::mat4 pm(1.0f);
+    for (int r = 0; r < 3; ++r) {
+      const glm::vec4 row = a[r] + (b[r] - a[r]) * blend;
+      for (int c = 0; c < 4; ++c) pm[c][r] = row[c];
+    }
+    bone[p] = place * pm;
+    centre[p] = glm::vec3(bone[p] * glm::vec4(parts[p].centre, 1.0f));
+    const float depth = glm::dot(centre[p] - camera.eye, fwd);
+    const float px = 2.0f * parts[p].radius * sc * ppm1 / std::max(depth, 1e-3f);
+    const int wclass = choose_window(config_.windows, px * config_.texels_per_pixel);
+    PartCache& pc = pcs[p];
+    due[p] = all;
+    if (pc.window.valid() && pc.window.size_class != wclass) {
+      atlas_.release(pc.window);
+      pc.window = AtlasWindow{};
+      window_change = true;
+    }
+    if (!pc.window.valid()) {
+      auto w = atlas_.allocate(wclass);
+      if (!w) {
+        for (int q = 0; q < count; ++q)
+          if (pcs[q].window.valid()) {
+            atlas_.release(pcs[q].window);
+            pcs[q].window = AtlasWindow{};
+          }
+        ++st.atlas_fallbacks;
+        cs.valid = false;
+        return false;
+      }
+      pc.window = *w;
+      due[p] = true;
+    }
+  }
+  if (window_change && !all) ++st.window_refreshes;
+  // Cache tests. Posture (section 5.1): per character, all its parts. View (section 5.2), per
+  // part: a card reproduces any rotation of its part about the line of sight (a roll of the
+  // picture) and any translation; what it cannot show is the part turning out of the card's
+  // plane, so the test is the angle between the card's normal, carried by the bone, and the
+  // current line of sight to the part.
+  const CacheConfig& cc = config_.cache;
+  std::array<float, 4> posture;
+  for (int k = 0; k < 4; ++k) posture[k] = bc.posture[f0][k] + (bc.posture[f1][k] - bc.posture[f0][k]) * blend;
+  const float w = distance_weight(cc, glm::distance(ta, camera.eye));
+  if (!all) {
+    if (cc.posture_test && posture_changed(cs.posture, posture, cc.posture_threshold * w)) {
+      due.fill(true);
+      ++st.posture_refreshes;
+    } else if (cc.view_test) {
+      const float cthr = std::cos(std::min(glm::radians(cc.view_threshold_deg) * w, 3.14159265f));
+      bool any = false;
+      for (int p = 0; p < count; ++p) {
+        if (due[p]) continue;
+        const glm::vec3 n = glm::normalize(glm::mat3(bone[p]) * pcs[p].normal);
+        const glm::vec3 los = glm::normalize(centre[p] - camera.eye);
+        due[p] = glm::dot(n, los) < cthr;
+        any |= due[p];
+      }
+      if (any) ++st.view_refreshes;
+    }
+  }
+  bool any_due = false;
+  for (int p = 0; p < count; ++p) any_due |= due[p];
+  if (any_due) {
+    cs.valid = true;
+    if (cc.posture_test && (all || due[0])) cs.posture = posture;
+    const int lods = static_cast<int>(m.lods.size());
+    const int slod = config_.snapshot_lod_from_screen
+                         ? std::min(lod_for(pixels, camera.height), lods - 1)
+                         : lod_for(static_cast<float>(config_.windows.size[pcs[0].window.size_class]), camera.height);
+    const PartIndices& pi = m.part_indices(slod);
+    const std::size_t prims = m.lods[slod].primitives.size();
+    for (int p = 0; p < count; ++p) {
+      if (!due[p]) continue;
+      const BodyPart& bp = parts[p];
+      PartCache& pc = pcs[p];
+      const AtlasWindow& win = pc.window;
+      const float r = bp.radius * sc;
+      SnapshotCamera cam = make_snapshot_camera(centre[p], camera.eye, camera.up, r,
+                                                config_.snapshot_distance > 0 ? config_.snapshot_distance * sc : 0.0f,
+                                                config_.perspective_snapshots);
+      if (config_.texel_per_pixel && cam.perspective)
+        cam.half_size = std::max(cam.half_size, static_cast<float>(win.size) * cam.distance / (2.0f * ppm1));
+      // The card at snapshot time, in the bone's palette space.
+      const glm::mat4 inv = glm::inverse(bone[p]);
+      pc.centre = glm::vec3(inv * glm::vec4(centre[p], 1.0f));
+      pc.axis_x = glm::vec3(inv * glm::vec4(cam.ho * cam.half_size, 0.0f));
+      pc.axis_y = glm::vec3(inv * glm::vec4(cam.uo * cam.half_size, 0.0f));
+      pc.normal = glm::vec3(inv * glm::vec4(cam.vo, 0.0f));
+      pc.half_size = cam.half_size;
+      pc.rect = glm::vec4(-1, -1, 1, 1);
+      glm::vec4 snap_rect = pc.rect;
+      if (config_.tight_quads) {
+        // The part's box (palette space, over all frames) projected on the snapshot plane.
+        glm::vec2 rmin(1e30f), rmax(-1e30f);
+        for (int k = 0; k < 8; ++k) {
+          const glm::vec3 q((k & 1) ? bp.box_max.x : bp.box_min.x, (k & 2) ? bp.box_max.y : bp.box_min.y,
+                            (k & 4) ? bp.box_max.z : bp.box_min.z);
+          const glm::vec3 d = glm::vec3(bone[p] * glm::vec4(q, 1.0f)) - centre[p];
+          float s = 1.0f / cam.half_size;
+          if (cam.perspective) s *= cam.distance / std::max(cam.distance + glm::dot(d, cam.vo), 1e-3f * cam.distance);
+          const glm::vec2 v(glm::dot(d, cam.ho) * s, glm::dot(d, cam.uo) * s);
+          rmin = glm::min(rmin, v);
+          rmax = glm::max(rmax, v);
+        }
+        const float texel = 2.0f / static_cast<float>(win.size);
+        const glm::vec2 t0 = glm::floor(rmin / texel), t1 = glm::ceil(rmax / texel);
+        pc.rect = glm::vec4(glm::clamp((t0 - 1.0f) * texel, -1.0f, 1.0f), glm::clamp((t1 + 1.0f) * texel, -1.0f, 1.0f));
+        snap_rect = glm::vec4(glm::clamp((t0 - 4.0f) * texel, -1.0f, 1.0f), glm::clamp((t1 + 4.0f) * texel, -1.0f, 1.0f));
+      }
+      SnapshotGpu s;
+      s.instance = inst;
+      s.ho_half = glm::vec4(cam.ho, cam.half_size);
+      s.uo_dist = glm::vec4(cam.uo, cam.distance);
+      s.vo = glm::vec4(cam.vo, cam.perspective ? 1.0f : 0.0f);
+      s.ta = glm::vec4(centre[p], r);
+      const float half = static_cast<float>(win.size) / page;
+      s.window = glm::vec4(-1.0f + (2.0f * win.x + win.size) / page, -1.0f + (2.0f * win.y + win.size) / page, half,
+                           static_cast<float>(win.page));
+      s.rect = snap_rect;
+      s.part = glm::vec4(static_cast<float>(p), 0.0f, 0.0f, 0.0f);
+      plan_.snapshots[slod].push_back(s);
+      ++st.part_snapshots;
+      for (std::size_t k = 0; k < prims; ++k) st.snapshot_triangles += pi.ranges[k * parts_ + p].count / 3;
+    }
+    ++st.snapshots;
+  }
+  for (int p = 0; p < count; ++p) {
+    const PartCache& pc = pcs[p];
+    const AtlasWindow& win = pc.window;
+    plan_.billboards.push_back(BillboardGpu{
+        glm::vec4(glm::vec3(bone[p] * glm::vec4(pc.centre, 1.0f)), pc.half_size),
+        glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
+        glm::vec4(static_cast<float>(win.page), 0.0f, 0.0f, 0.0f), pc.rect,
+        glm::vec4(glm::vec3(bone[p] * glm::vec4(pc.axis_x, 0.0f)), 1.0f),
+        glm::vec4(glm::vec3(bone[p] * glm::vec4(pc.axis_y, 0.0f)), 1.0f)});
+    ++st.impostors_per_window[win.size_class];
+    ++st.part_cards;
+  }
+  ++st.impostors;
+  return true;
 }
 
 }  // namespace bb::runtime

@@ -136,6 +136,8 @@ layout(location = 0) in vec4 i_ta_half;
 layout(location = 1) in vec4 i_uv;
 layout(location = 2) in vec4 i_layer;
 layout(location = 3) in vec4 i_rect;
+layout(location = 4) in vec4 i_axis_x;  // part cards (w = 1): half axes, world
+layout(location = 5) in vec4 i_axis_y;
 uniform mat4 u_viewproj;
 uniform vec3 u_eye;
 uniform vec3 u_up;
@@ -143,12 +145,17 @@ out vec3 v_uvl;
 void main() {
   vec2 c = mix(i_rect.xy, i_rect.zw, vec2(gl_VertexID & 1, gl_VertexID >> 1));
   vec3 ta = i_ta_half.xyz;
-  vec3 vo = normalize(ta - u_eye);
-  vec3 h = cross(vo, u_up);
-  if (length(h) < 1e-6) h = cross(vo, vec3(0.0, 0.0, 1.0));
-  vec3 ho = normalize(h);
-  vec3 uo = cross(ho, vo);
-  vec3 p = ta + i_ta_half.w * (c.x * ho + c.y * uo);
+  vec3 p;
+  if (i_axis_x.w > 0.5) {
+    p = ta + c.x * i_axis_x.xyz + c.y * i_axis_y.xyz;
+  } else {
+    vec3 vo = normalize(ta - u_eye);
+    vec3 h = cross(vo, u_up);
+    if (length(h) < 1e-6) h = cross(vo, vec3(0.0, 0.0, 1.0));
+    vec3 ho = normalize(h);
+    vec3 uo = cross(ho, vo);
+    p = ta + i_ta_half.w * (c.x * ho + c.y * uo);
+  }
   gl_Position = u_viewproj * vec4(p, 1.0);
   v_uvl = vec3(mix(i_uv.xy, i_uv.zw, c * 0.5 + 0.5), i_layer.x);
 }
@@ -194,7 +201,11 @@ void main() {
   }
   vec4 c = 0.25 * (tap(v_uvl.xy - 0.125 * dx - 0.375 * dy) + tap(v_uvl.xy + 0.375 * dx - 0.125 * dy) +
                    tap(v_uvl.xy - 0.375 * dx + 0.125 * dy) + tap(v_uvl.xy + 0.125 * dx + 0.375 * dy));
-  if (u_edges == 0) {
+  if (u_edges == 5) {
+    // The opaque pass of part cards: only wholly covered pixels, which write depth.
+    if (c.a < 0.996) discard;
+    o_color = vec4(c.rgb / c.a, 1.0);
+  } else if (u_edges == 0) {
     if (c.a < 0.5) discard;
     o_color = vec4(c.rgb / c.a, 1.0);
   } else if (u_edges == 2) {
@@ -287,7 +298,9 @@ struct Renderer::Impl {
   ImpostorConfig config;
   struct Lod {
     GLuint vbo = 0, ibo = 0, vao_geometry = 0, vao_snapshot = 0;
+    GLuint part_ibo = 0, vao_part_snapshot = 0;  // body parts' triangles (Model::part_indices)
   };
+  int parts = 1;  // body parts of the model (1: no part index buffers)
   std::vector<Lod> lods;
   std::vector<GLuint> textures;  // per model texture
   GLuint white = 0;
@@ -305,9 +318,10 @@ struct Renderer::Impl {
   std::vector<BillboardGpu> billboard_scratch;
   struct Due {
     std::int32_t lod, page, index;  // index into the plan's list of that lod
+    std::int32_t part;              // body part, -1: the whole character
   };
   std::vector<Due> due;
-  std::vector<int> scratch_lod;  // per snapshot_scratch entry
+  std::vector<int> scratch_lod, scratch_part;  // per snapshot_scratch entry
   glm::vec3 light = glm::normalize(glm::vec3(0.4f, 0.8f, 0.6f));
 
   struct ShadeLocations {
@@ -338,10 +352,29 @@ struct Renderer::Impl {
     glUseProgram(prog_snapshot);
     for (std::size_t b = first, end = first + count; b < end;) {
       std::size_t e = b;
-      while (e < end && scratch_lod[e] == scratch_lod[b]) ++e;
-      glBindVertexArray(lods[scratch_lod[b]].vao_snapshot);
-      draw_lod(prog_snapshot, scratch_lod[b], static_cast<GLsizei>(e - b), static_cast<GLuint>(b));
+      while (e < end && scratch_lod[e] == scratch_lod[b] && scratch_part[e] == scratch_part[b]) ++e;
+      if (scratch_part[b] < 0) {
+        glBindVertexArray(lods[scratch_lod[b]].vao_snapshot);
+        draw_lod(prog_snapshot, scratch_lod[b], static_cast<GLsizei>(e - b), static_cast<GLuint>(b));
+      } else {
+        glBindVertexArray(lods[scratch_lod[b]].vao_part_snapshot);
+        draw_part(scratch_lod[b], scratch_part[b], static_cast<GLsizei>(e - b), static_cast<GLuint>(b));
+      }
       b = e;
+    }
+  }
+
+  // The triangles of body part `part` only (the part index buffer's ranges).
+  void draw_part(int lod, int part, GLsizei count, GLuint base_instance) {
+    const MeshLod& ml = model->lods[lod];
+    const PartIndices& pi = model->part_indices(lod);
+    for (std::size_t k = 0; k < ml.primitives.size(); ++k) {
+      const PartIndices::Range& r = pi.ranges[k * parts + part];
+      if (r.count == 0) continue;
+      set_material(prog_snapshot, model->materials[ml.primitives[k].material]);
+      glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(r.count), GL_UNSIGNED_INT,
+                                          reinterpret_cast<const void*>(static_cast<std::uintptr_t>(r.first) * 4), count,
+                                          base_instance);
     }
   }
 
@@ -365,17 +398,25 @@ void Renderer::Impl::take_snapshots(const FramePlan& plan) {
     for (std::size_t i = 0; i < plan.snapshots[lod].size(); ++i) {
       const int page = static_cast<int>(plan.snapshots[lod][i].window.w);
       assert(page < config.max_pages && "plan from a planner with another ImpostorConfig");
-      due.push_back(Due{std::min(lod, nlods - 1), page, static_cast<std::int32_t>(i)});
+      const int part = static_cast<int>(plan.snapshots[lod][i].part.x);
+      due.push_back(Due{std::min(lod, nlods - 1), page, static_cast<std::int32_t>(i), part < parts ? part : -1});
     }
   if (due.empty()) return;
-  // One pass for all pages when the vertex shader can choose the layer, else one per page.
+  // One pass for all pages when the vertex shader can choose the layer, else one per page; in a
+  // pass, one draw per level, part and primitive.
   if (!layered)
-    std::sort(due.begin(), due.end(), [](const Due& a, const Due& b) { return a.page != b.page ? a.page < b.page : a.lod < b.lod; });
+    std::sort(due.begin(), due.end(), [](const Due& a, const Due& b) {
+      return a.page != b.page ? a.page < b.page : a.lod != b.lod ? a.lod < b.lod : a.part < b.part;
+    });
+  else
+    std::sort(due.begin(), due.end(), [](const Due& a, const Due& b) { return a.lod != b.lod ? a.lod < b.lod : a.part < b.part; });
   snapshot_scratch.clear();
   scratch_lod.clear();
+  scratch_part.clear();
   for (const Due& u : due) {
     snapshot_scratch.push_back(plan.snapshots[u.lod][u.index]);
     scratch_lod.push_back(u.lod);
+    scratch_part.push_back(u.part);
   }
   snapshots.upload(snapshot_scratch.data(), snapshot_scratch.size() * sizeof(SnapshotGpu));
   GLint prev_fbo = 0, vp[4];
@@ -511,6 +552,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
       glVertexArrayAttribFormat(vao, first_attr + k, 4, GL_FLOAT, GL_FALSE, k * 16);
     }
   };
+  d.parts = static_cast<int>(model.body_parts().size());
   for (const MeshLod& ml : model.lods) {
     Impl::Lod l;
     glCreateBuffers(1, &l.vbo);
@@ -523,10 +565,19 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     glCreateVertexArrays(1, &l.vao_snapshot);
     vertex_format(l.vao_snapshot, l.vbo, l.ibo);
     instance_attribs(l.vao_snapshot, d.snapshots.id, sizeof(SnapshotGpu), 5, 8);
+    if (d.parts > 1) {
+      const PartIndices& pi = model.part_indices(static_cast<int>(d.lods.size()));
+      glCreateBuffers(1, &l.part_ibo);
+      glNamedBufferStorage(l.part_ibo, static_cast<GLsizeiptr>(std::max<std::size_t>(1, pi.indices.size()) * 4),
+                           pi.indices.empty() ? nullptr : pi.indices.data(), 0);
+      glCreateVertexArrays(1, &l.vao_part_snapshot);
+      vertex_format(l.vao_part_snapshot, l.vbo, l.part_ibo);
+      instance_attribs(l.vao_part_snapshot, d.snapshots.id, sizeof(SnapshotGpu), 5, 8);
+    }
     d.lods.push_back(l);
   }
   glCreateVertexArrays(1, &d.vao_billboard);
-  instance_attribs(d.vao_billboard, d.billboards.id, sizeof(BillboardGpu), 0, 4);
+  instance_attribs(d.vao_billboard, d.billboards.id, sizeof(BillboardGpu), 0, 6);
 
   // The atlas: one RGBA8 layer per page, one depth buffer shared by all pages.
   GLint max_layers = 0, max_size = 0;
@@ -567,6 +618,10 @@ Renderer::~Renderer() {
   for (auto& l : d.lods) {
     glDeleteVertexArrays(1, &l.vao_geometry);
     glDeleteVertexArrays(1, &l.vao_snapshot);
+    if (l.part_ibo) {
+      glDeleteVertexArrays(1, &l.vao_part_snapshot);
+      glDeleteBuffers(1, &l.part_ibo);
+    }
     glDeleteBuffers(1, &l.vbo);
     glDeleteBuffers(1, &l.ibo);
   }
@@ -678,7 +733,19 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
       glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
     }
     glBindVertexArray(d.vao_billboard);
+    if (mode == 1 && plan.stats.part_cards > 0) {
+      // Part cards meet inside a character: their wholly covered pixels first, with depth, so
+      // the depth test orders the parts; then every pixel blended, without writing depth, so a
+      // card's soft edge never hides the card behind it.
+      glDisable(GL_BLEND);
+      glProgramUniform1i(bp.prog, bp.edges, 5);
+      glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(plan.billboards.size()));
+      glProgramUniform1i(bp.prog, bp.edges, 1);
+      glEnable(GL_BLEND);
+      glDepthMask(GL_FALSE);
+    }
     glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(plan.billboards.size()));
+    glDepthMask(GL_TRUE);
     glDisable(GL_BLEND);
     glDisable(GL_SAMPLE_ALPHA_TO_COVERAGE);
     glDisable(GL_SAMPLE_ALPHA_TO_ONE);

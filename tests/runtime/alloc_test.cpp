@@ -37,7 +37,7 @@ void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
 namespace bb::runtime {
 namespace {
 
-TEST(PerFrame, PlannerAllocatesNothingAfterWarmUp) {
+void expect_no_allocation(bool part_cards) {
   if (!BB_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
   std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
@@ -46,7 +46,10 @@ TEST(PerFrame, PlannerAllocatesNothingAfterWarmUp) {
   Crowd crowd(*m);
   for (int i = 0; i < 500; ++i)
     crowd.add(Character{glm::vec3((i % 25) * 1.5f - 18.0f, 0, -(i / 25) * 1.5f), 0.1f * i, 1.0f, 0, 0.05f * i, 1.0f});
-  FramePlanner planner(*m);
+  ImpostorConfig cfg;
+  cfg.part_cards = part_cards;
+  cfg.max_pages = part_cards ? 256 : cfg.max_pages;
+  FramePlanner planner(*m, cfg);
   SceneCamera cam;
   cam.eye = {0, 20, 25};
   cam.target = {0, 0, -15};
@@ -65,6 +68,9 @@ TEST(PerFrame, PlannerAllocatesNothingAfterWarmUp) {
   EXPECT_EQ(g_allocations.load() - before, 0);
   EXPECT_GT(snapshots, 0);
 }
+
+TEST(PerFrame, PlannerAllocatesNothingAfterWarmUp) { expect_no_allocation(false); }
+TEST(PerFrame, PlannerWithPartCardsAllocatesNothingAfterWarmUp) { expect_no_allocation(true); }
 
 }  // namespace
 }  // namespace bb::runtime

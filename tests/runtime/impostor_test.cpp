@@ -8,6 +8,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
 
+#include "bb/runtime/animation.h"
 #include "bb/runtime/crowd.h"
 #include "bb/runtime/impostor.h"
 
@@ -314,6 +315,169 @@ TEST(FramePlanner, AtlasFullFallsBackToGeometry) {
   EXPECT_GT(s.atlas_fallbacks, 0);
 }
 
+
+// A hinge: a root triangle and an arm triangle skinned to a joint 1 m up that turns 90 degrees
+// about +Z over the 1 s clip.
+Model hinge_model() {
+  Model m;
+  m.name = "hinge";
+  m.nodes = {Node{"root", -1, {}}, Node{"arm", 0, {glm::vec3(0, 1, 0), glm::quat(1, 0, 0, 0), glm::vec3(1)}}};
+  m.palette = {PaletteEntry{0, glm::mat4(1)}, PaletteEntry{1, glm::translate(glm::mat4(1), glm::vec3(0, -1, 0))}};
+  MeshLod lod;
+  lod.vertices.resize(6);
+  const glm::vec3 pos[6] = {{-0.5f, 0, 0}, {0.5f, 0, 0}, {0, 1, 0}, {-0.1f, 1, 0}, {0.1f, 1, 0}, {0, 2, 0}};
+  for (int v = 0; v < 6; ++v) {
+    lod.vertices[v].position = pos[v];
+    lod.vertices[v].joints = glm::u16vec4(v < 3 ? 0 : 1, 0, 0, 0);
+  }
+  lod.indices = {0, 1, 2, 3, 4, 5};
+  lod.primitives = {Primitive{0, 6, 0}};
+  m.lods = {lod};
+  m.materials = {Material{}};
+  Clip clip;
+  clip.name = "bend";
+  clip.duration = 1.0f;
+  Channel c;
+  c.node = 1;
+  c.path = ChannelPath::kRotation;
+  c.times = {0.0f, 1.0f};
+  const glm::quat q = glm::angleAxis(glm::radians(90.0f), glm::vec3(0, 0, 1));
+  c.values = {{0, 0, 0, 1}, {q.x, q.y, q.z, q.w}};
+  clip.channels = {c};
+  m.clips = {clip};
+  m.bake(60.0f);
+  return m;
+}
+
+TEST(BodyParts, HingeSplitsIntoTwoPartsWithTheirOwnTriangles) {
+  Model m = hinge_model();
+  const auto parts = m.body_parts();
+  ASSERT_EQ(parts.size(), 2u);
+  EXPECT_EQ(parts[0].bone, 0);
+  EXPECT_EQ(parts[1].bone, 1);
+  EXPECT_NEAR(parts[1].mass, 0.5f, 1e-6f);
+  const PartIndices& pi = m.part_indices(0);
+  ASSERT_EQ(pi.ranges.size(), 2u);
+  EXPECT_EQ(pi.ranges[0].count, 3u);
+  EXPECT_EQ(pi.ranges[1].count, 3u);
+  EXPECT_EQ(pi.indices[pi.ranges[1].first], 3u);
+  // The arm's box, in its palette (bind) space: the arm triangle, plus the margin.
+  EXPECT_NEAR(parts[1].box_min.y, 1.0f, 0.05f);
+  EXPECT_NEAR(parts[1].box_max.y, 2.0f, 0.05f);
+  // Without clips nothing moves: one part.
+  Model still = hinge_model();
+  still.clips.clear();
+  still.bake(60.0f);
+  EXPECT_EQ(still.body_parts().size(), 1u);
+  // Chosen by hand.
+  const int bones[] = {0, 1};
+  still.set_body_parts(bones);
+  EXPECT_EQ(still.body_parts().size(), 2u);
+}
+
+TEST(BodyParts, CardFollowsItsBoneWithoutARefresh) {
+  Model m = hinge_model();
+  Crowd crowd(m);
+  crowd.add(Character{glm::vec3(1, 0, -2), 0.4f, 1.5f, 0, 0.0f, 1.0f});
+  ImpostorConfig cfg;
+  cfg.part_cards = true;
+  cfg.cache.posture_test = false;
+  cfg.cache.view_test = false;
+  FramePlanner planner(m, cfg);
+  SceneCamera cam;
+  cam.eye = {0, 1.5f, 10};
+  cam.target = {0, 1.5f, 0};
+  const FramePlan& p0 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+  EXPECT_EQ(p0.stats.snapshots, 1);
+  EXPECT_EQ(p0.stats.part_cards, 2);
+  ASSERT_EQ(p0.billboards.size(), 2u);
+  ASSERT_EQ(p0.snapshots[0].size(), 2u);
+  EXPECT_EQ(p0.snapshots[0][1].part.x, 1.0f);
+  const std::array<BillboardGpu, 2> b0 = {p0.billboards[0], p0.billboards[1]};
+  // At snapshot time each card faces the eye: its axes are perpendicular to the line of sight.
+  for (const auto& b : b0) {
+    const glm::vec3 los = glm::normalize(glm::vec3(b.ta_half) - cam.eye);
+    EXPECT_NEAR(glm::dot(glm::vec3(b.axis_x), los), 0.0f, 1e-5f);
+    EXPECT_NEAR(glm::dot(glm::vec3(b.axis_y), los), 0.0f, 1e-5f);
+    EXPECT_EQ(b.axis_x.w, 1.0f);
+  }
+  // Half a second later (an exact baked frame) the arm has turned 45 degrees; no refresh.
+  const FramePlan& p1 = planner.plan(crowd, cam, 0.5f, RenderMode::kImpostor);
+  EXPECT_EQ(p1.stats.snapshots, 0);
+  ASSERT_EQ(p1.billboards.size(), 2u);
+  // World matrix of the arm's palette entry (placement x palette matrix) at t.
+  auto arm_world = [&](float t) {
+    std::vector<Transform> locals(m.nodes.size());
+    std::vector<glm::mat4> world(m.nodes.size()), pal(m.palette.size());
+    sample_clip(m, 0, t, locals);
+    world_matrices(m, locals, world);
+    palette_matrices(m, world, pal);
+    const Character& ch = crowd[0];
+    glm::mat4 place = glm::translate(glm::mat4(1), ch.position) * glm::rotate(glm::mat4(1), ch.yaw, glm::vec3(0, 1, 0)) *
+                      glm::scale(glm::mat4(1), glm::vec3(ch.scale));
+    return place * pal[1];
+  };
+  const glm::mat4 move = arm_world(0.5f) * glm::inverse(arm_world(0.0f));
+  expect_vec3(glm::vec3(p1.billboards[1].ta_half), glm::vec3(move * glm::vec4(glm::vec3(b0[1].ta_half), 1)), 1e-4f);
+  expect_vec3(glm::vec3(p1.billboards[1].axis_x), glm::vec3(move * glm::vec4(glm::vec3(b0[1].axis_x), 0)), 1e-4f);
+  expect_vec3(glm::vec3(p1.billboards[1].axis_y), glm::vec3(move * glm::vec4(glm::vec3(b0[1].axis_y), 0)), 1e-4f);
+  // It really moved (the arm turned 45 degrees), while the root's card stayed.
+  EXPECT_GT(glm::distance(glm::vec3(p1.billboards[1].ta_half), glm::vec3(b0[1].ta_half)), 0.1f);
+  expect_vec3(glm::vec3(p1.billboards[0].ta_half), glm::vec3(b0[0].ta_half), 1e-5f);
+  // The card's texture coordinates and rect are those of the snapshot.
+  EXPECT_EQ(p1.billboards[1].uv_rect, b0[1].uv_rect);
+  EXPECT_EQ(p1.billboards[1].rect, b0[1].rect);
+  // Without part cards the same model draws one camera-facing quad.
+  planner.config().part_cards = false;
+  const FramePlan& p2 = planner.plan(crowd, cam, 0.5f, RenderMode::kImpostor);
+  ASSERT_EQ(p2.billboards.size(), 1u);
+  EXPECT_EQ(p2.billboards[0].axis_x.w, 0.0f);
+  EXPECT_EQ(p2.stats.snapshots, 1);
+}
+
+TEST(BodyParts, ViewTestIgnoresTheCardsRollButNotItsTilt) {
+  Model m = hinge_model();
+  Crowd crowd(m);
+  crowd.add(Character{glm::vec3(0, 0, 0), 0.0f, 1.0f, 0, 0.0f, 1.0f});
+  ImpostorConfig cfg;
+  cfg.part_cards = true;
+  cfg.cache.posture_test = false;
+  cfg.cache.view_threshold_deg = 8.0f;
+  FramePlanner planner(m, cfg);
+  SceneCamera cam;
+  cam.eye = {0, 1.5f, 30};
+  cam.target = {0, 1.5f, 0};
+  EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.part_snapshots, 2);
+  // The arm turns 45 degrees about the line of sight: its card rolls with it, no snapshot.
+  const FrameStats s1 = planner.plan(crowd, cam, 0.5f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(s1.part_snapshots, 0);
+  EXPECT_EQ(s1.refresh_fraction, 0.0f);
+  // The character turns 10 degrees about +Y: both cards tilt past 8 degrees, both are refreshed.
+  crowd[0].yaw = glm::radians(10.0f);
+  const FrameStats s2 = planner.plan(crowd, cam, 0.5f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(s2.part_snapshots, 2);
+  EXPECT_EQ(s2.view_refreshes, 1);
+  EXPECT_FLOAT_EQ(s2.refresh_fraction, 1.0f);
+  // 6 degrees more: under the threshold again.
+  crowd[0].yaw = glm::radians(16.0f);
+  EXPECT_EQ(planner.plan(crowd, cam, 0.5f, RenderMode::kImpostor).stats.part_snapshots, 0);
+}
+
+TEST(BodyParts, CesiumManHasLimbParts) {
+  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
+  auto m = load_model(path);
+  ASSERT_TRUE(m.ok());
+  const auto parts = m->body_parts();
+  EXPECT_GE(parts.size(), 5u);
+  EXPECT_LE(parts.size(), static_cast<std::size_t>(kMaxBodyParts));
+  float mass = 0.0f;
+  for (const auto& p : parts) mass += p.mass;
+  EXPECT_NEAR(mass, 1.0f, 1e-4f);
+  // Every triangle of the finest level is in at least one part.
+  const PartIndices& pi = m->part_indices(0);
+  EXPECT_GE(pi.indices.size(), m->lods[0].indices.size());
+}
 }  // namespace
 }  // namespace bb::runtime
 

@@ -119,6 +119,32 @@ struct BakedClip {
   std::vector<glm::vec2> root_offset;
 };
 
+// A body part for impostor part cards (ImpostorConfig::part_cards, the paper's section 7 item 2):
+// the skin joints that move together, carried by one bone. Found at bake time from the skin and
+// the clips (Model::body_parts).
+constexpr int kMaxBodyParts = 16;
+struct BodyPart {
+  int bone = 0;              // palette entry whose matrix carries the part (its top joint)
+  std::vector<int> joints;   // palette entries of the part
+  // The part's vertices (its own triangles and those it overlaps at its joints) in the bone's
+  // palette space, i.e. inverse(palette matrix) * skinned position = the bind position for a
+  // vertex skinned to the bone alone; over sampled frames of every clip, with a margin. Metres.
+  glm::vec3 box_min{0.0f}, box_max{0.0f};
+  glm::vec3 centre{0.0f};    // of the bounding sphere, same space
+  float radius = 0.0f;       // metres
+  float mass = 0.0f;         // share of the skin weight of the finest level (own joints only)
+};
+
+// Triangles of each body part, per mesh level: the level's index list regrouped, triangles at the
+// joints repeated in every part they overlap (so cards do not crack where limbs bend).
+struct PartIndices {
+  std::vector<std::uint32_t> indices;  // into the level's vertices
+  struct Range {
+    std::uint32_t first = 0, count = 0;  // into `indices`
+  };
+  std::vector<Range> ranges;  // [primitive * part_count + part]
+};
+
 class Model {
  public:
   std::string name;  // file stem
@@ -157,10 +183,28 @@ class Model {
   // palette matrix), frames of all clips one after the other.
   std::span<const glm::vec4> baked_palette() const { return baked_palette_; }
 
-  // Rebuilds the baked data at `rate` frames per second (load does this at 60).
+  // Rebuilds the baked data at `rate` frames per second (load does this at 60), and the body parts.
   void bake(float rate = 60.0f);
 
+  // Body parts (at least one; one = the whole body; at most kMaxBodyParts) and their triangles
+  // per level. Automatic: a skin joint starts a new part when its subtree holds at least 1.5 % of
+  // the skin weight and it turns more than 12 degrees relative to its parent's part over the clips
+  // (our walking body: root (pelvis), chest, thighs, shins, feet, upper arms, forearms+hands; the
+  // neck and head stay with the chest). Parts with under 0.5 % of the weight of their own join
+  // their parent's. A triangle belongs to the part with most of its vertices' weight, and also to
+  // every part that weighs 0.7 or more on one of its vertices (so cards overlap a little at the
+  // joints). A model with no clip, or where nothing turns, has one part.
+  std::span<const BodyPart> body_parts() const { return parts_; }
+  const PartIndices& part_indices(int lod) const { return part_indices_[lod]; }
+  // Replaces the automatic parts: `bones[k]` are the palette entries that start part k (the first
+  // is the root part); every other joint joins the part of its nearest ancestor. Recomputes the
+  // triangles and bounds (not for the per-frame path).
+  void set_body_parts(std::span<const int> bones);
+
  private:
+  std::vector<BodyPart> parts_;
+  std::vector<PartIndices> part_indices_;
+  void split_parts(std::span<const int> bones);
   std::vector<PosturePair> posture_pairs_;
   std::vector<BakedClip> baked_;
   std::vector<glm::vec4> baked_palette_;
