@@ -2,7 +2,9 @@
 // meshoptimizer's meshopt_simplify (border locked) on the same meshes: the default body's
 // full-resolution OpenVDB head, hands and feet, at equal triangle counts. Error is the symmetric
 // Hausdorff and mean distance to the original (same sampling for both); time is the simplifier
-// alone. Prints a table and, with --json, one JSON object.
+// alone. Then the levels `bodybuilder build` ships: each decimated level's head, hand and foot as
+// built (progressively, from the previous level), against meshoptimizer from the full-resolution
+// part to the same triangle count. Prints tables and, with --json, one JSON object.
 // Run: build/bin/bench_decimate [--json]
 #include <chrono>
 #include <cstdio>
@@ -14,6 +16,7 @@
 #include <meshoptimizer.h>
 
 #include "bb/decimate/decimate.h"
+#include "bb/exporter/build.h"
 #include "bb/mesher/mesher.h"
 #include "bb/modeler/body.h"
 
@@ -55,9 +58,33 @@ mesher::SkinnedMesh extract(const mesher::SkinnedMesh& m, uint8_t part, std::vec
   return out;
 }
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+// meshopt_simplify (border locked) of `m` to `target` triangles, as a standalone mesh of the
+// vertices it uses (its unused input vertices lie on the original surface and must not count as
+// samples of the output).
+struct Simplified {
+  std::vector<glm::vec3> positions;
+  std::vector<uint32_t> indices;
+  double seconds = 0;
+};
+Simplified meshopt_to(const mesher::SkinnedMesh& m, size_t target) {
+  std::vector<unsigned> dst(m.indices.size());
+  auto t1 = std::chrono::steady_clock::now();
+  size_t got = meshopt_simplify(dst.data(), m.indices.data(), m.indices.size(), &m.positions[0].x, m.positions.size(),
+                                sizeof(glm::vec3), target * 3, 1.0f, meshopt_SimplifyLockBorder, nullptr);
+  Simplified out;
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+  dst.resize(got);
+  std::vector<uint32_t> used(m.positions.size(), UINT32_MAX);
+  for (unsigned v : dst) {
+    if (used[v] == UINT32_MAX) {
+      used[v] = static_cast<uint32_t>(out.positions.size());
+      out.positions.push_back(m.positions[v]);
+    }
+    out.indices.push_back(used[v]);
+  }
+  return out;
 }
+
 
 }  // namespace
 
@@ -98,38 +125,19 @@ int main(int argc, char** argv) {
         opt.max_original_normal_deviation_deg = 180.0f;
         opt.max_normal_deviation_deg = 90.0f;
       }
-      auto t0 = std::chrono::steady_clock::now();
       decimate::Report rep;
       auto ours = decimate::decimate(m, opt, &rep);
       double t_ours = rep.seconds;
-      (void)t0;
       if (!ours) {
         std::fprintf(stderr, "%s\n", ours.error().message().c_str());
         return 1;
       }
       // meshoptimizer at the triangle count ours reached (equal counts), border locked.
-      std::vector<unsigned> dst(m.indices.size());
-      size_t want = ours->indices.size();
-      auto t1 = std::chrono::steady_clock::now();
-      size_t got = meshopt_simplify(dst.data(), m.indices.data(), m.indices.size(), &m.positions[0].x,
-                                    m.positions.size(), sizeof(glm::vec3), want, 1.0f, meshopt_SimplifyLockBorder,
-                                    nullptr);
-      double t_mo = seconds_since(t1);
-      dst.resize(got);
-      // meshopt's indices refer to the input's vertex array: keep only the vertices they use, so
-      // that the removed ones (which lie on the original surface) do not count as zero-distance
-      // samples of the output.
-      std::vector<glm::vec3> mo_positions;
-      std::vector<uint32_t> mo_indices, used(m.positions.size(), UINT32_MAX);
-      for (unsigned v : dst) {
-        if (used[v] == UINT32_MAX) {
-          used[v] = static_cast<uint32_t>(mo_positions.size());
-          mo_positions.push_back(m.positions[v]);
-        }
-        mo_indices.push_back(used[v]);
-      }
+      Simplified mos = meshopt_to(m, ours->indices.size() / 3);
+      size_t got = mos.indices.size();
+      double t_mo = mos.seconds;
       auto d_ours = decimate::mesh_distance(m.positions, m.indices, ours->positions, ours->indices);
-      auto d_mo = decimate::mesh_distance(m.positions, m.indices, mo_positions, mo_indices);
+      auto d_mo = decimate::mesh_distance(m.positions, m.indices, mos.positions, mos.indices);
       ++rows;
       ours_better_or_equal += d_ours.hausdorff_m <= d_mo.hausdorff_m * 1.0001;
       if (!json)
@@ -147,8 +155,51 @@ int main(int argc, char** argv) {
       first = false;
     }
   }
-  out += "],\"ours_hausdorff_no_worse\":" + std::to_string(ours_better_or_equal) + ",\"rows_total\":" + std::to_string(rows) + "}";
+  out += "],\"ours_hausdorff_no_worse\":" + std::to_string(ours_better_or_equal) + ",\"rows_total\":" + std::to_string(rows);
+  if (!json) std::printf("ours no worse (Hausdorff) in %d of %d rows\n", ours_better_or_equal, rows);
+
+  // The levels `bodybuilder build` ships.
+  auto built = exporter::build_body(modeler::default_body());
+  if (!built) {
+    std::fprintf(stderr, "%s\n", built.error().message().c_str());
+    return 1;
+  }
+  const auto& levels = built->input.lods;
+  if (!json)
+    std::printf("\nshipped levels (ours as built, progressively; meshopt from full resolution)\n%-6s %-10s %7s | %11s %11s | %11s %11s\n",
+                "level", "part", "tris", "ours H (mm)", "mean (mm)", "meshopt H", "mean (mm)");
+  out += ",\"levels\":[";
+  int level_rows = 0, level_no_worse = 0, level_mean_no_worse = 0;
+  for (size_t l = 0; l + 1 < levels.size(); ++l) {  // the last level has contour-sampled proxies
+    for (uint8_t part : {1, 2, 4}) {
+      std::vector<char> locked;
+      mesher::SkinnedMesh m = extract(full, part, &locked);
+      mesher::SkinnedMesh ours = extract(levels[l].mesh, part, &locked);
+      if (m.triangle_count() == 0 || ours.triangle_count() == 0) continue;
+      Simplified ms = meshopt_to(m, ours.triangle_count());
+      auto d_ours = decimate::mesh_distance(m.positions, m.indices, ours.positions, ours.indices);
+      auto d_mo = decimate::mesh_distance(m.positions, m.indices, ms.positions, ms.indices);
+      ++level_rows;
+      level_no_worse += d_ours.hausdorff_m <= d_mo.hausdorff_m * 1.0001;
+      level_mean_no_worse += d_ours.mean_m <= d_mo.mean_m * 1.0001;
+      if (!json)
+        std::printf("%-6zu %-10s %7zu | %11.3f %11.3f | %11.3f %11.3f   (meshopt tris %zu)\n", l, names[part],
+                    ours.triangle_count(), d_ours.hausdorff_m * 1e3, d_ours.mean_m * 1e3, d_mo.hausdorff_m * 1e3,
+                    d_mo.mean_m * 1e3, ms.indices.size() / 3);
+      char buf[400];
+      std::snprintf(buf, sizeof buf,
+                    "%s{\"level\":%zu,\"part\":\"%s\",\"triangles\":%zu,\"ours_hausdorff_m\":%g,\"ours_mean_m\":%g,"
+                    "\"meshopt_triangles\":%zu,\"meshopt_hausdorff_m\":%g,\"meshopt_mean_m\":%g}",
+                    level_rows > 1 ? "," : "", l, names[part], ours.triangle_count(), d_ours.hausdorff_m, d_ours.mean_m,
+                    ms.indices.size() / 3, d_mo.hausdorff_m, d_mo.mean_m);
+      out += buf;
+    }
+  }
+  out += "],\"levels_hausdorff_no_worse\":" + std::to_string(level_no_worse) + ",\"levels_mean_no_worse\":" +
+         std::to_string(level_mean_no_worse) + ",\"level_rows\":" + std::to_string(level_rows) + "}";
   if (json) std::printf("%s\n", out.c_str());
-  else std::printf("ours no worse (Hausdorff) in %d of %d rows\n", ours_better_or_equal, rows);
+  else
+    std::printf("shipped levels: ours no worse in %d of %d rows (Hausdorff), %d of %d (mean)\n", level_no_worse,
+                level_rows, level_mean_no_worse, level_rows);
   return 0;
 }
