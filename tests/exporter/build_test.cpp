@@ -8,6 +8,7 @@
 #include <fstream>
 #include <iterator>
 #include <set>
+#include <string>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -85,6 +86,13 @@ TEST(Build, RuntimeLoadsTheLodSet) {
   EXPECT_EQ(m->textures.size(), 1u);
   EXPECT_GT(m->radius, 0.8f);
   EXPECT_LT(m->radius, 2.0f);
+  // Impostor part cards: the walk splits our body into pelvis, chest with head, and each limb's
+  // segments (upper arm, forearm with hand, thigh, shin, foot), found from the skin and the clip.
+  std::set<std::string> parts;
+  for (const auto& p : m->body_parts()) parts.insert(m->nodes[m->palette[p.bone].node].name);
+  const std::set<std::string> expected = {"HumanoidRoot", "vt10",     "l_shoulder", "l_elbow", "r_shoulder", "r_elbow",
+                                          "l_hip",        "l_knee",   "l_ankle",    "r_hip",   "r_knee",     "r_ankle"};
+  EXPECT_EQ(parts, expected);
 }
 
 // Middle levels start from the previous level's decimated extremities: every extremity vertex of
