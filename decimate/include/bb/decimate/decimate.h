@@ -1,13 +1,19 @@
 // Decimation of skinned meshes (paper section 3.1: head, hands and feet are simplified by
 // decimation; the limbs and trunk get their LODs from contour sampling instead).
 //
-// Quadric-error edge collapses with OpenMesh (DecimaterT + ModQuadricT + ModNormalFlippingT) plus
-// two modules of ours: ModSkinWeightsT refuses collapses between vertices whose skin weights differ
-// too much (they would smear the skinning at joints); ModOriginalNormalsT refuses collapses after
-// which a face would point away from its vertices' original normals (no flips, even cumulative). Vertices flagged `locked`
+// Quadric-error halfedge collapses on an OpenMesh mesh, run in passes as meshoptimizer does (each
+// pass ranks every edge by the removed vertex's plane quadric, weighted by the square root of the
+// planes' area and normalized, at the survivor; collapses in that order up to 1.5 times the error at
+// the rank that reaches the target, each vertex at most once per pass), with OpenMesh-style modules
+// of ours (decimate/src/modules.h): ModQuadricNormalizedT (the priority and the normal rules: no
+// face turns more than max_normal_deviation_deg in one collapse, nor away from the mean of its
+// vertices' original normals by more than max_original_normal_deviation_deg, so flips cannot
+// accumulate) and ModSkinWeightsT (no collapse between vertices whose skin weights differ by more
+// than max_weight_difference: they would smear the skinning at joints). Vertices flagged `locked`
 // (the seams where an extremity joins a limb) never move and are never removed, so a decimated
-// extremity still meets its limb without cracks. Collapses are halfedge collapses: every
-// surviving vertex keeps its original position, normal, uv and skin weights.
+// extremity still meets its limb without cracks. After the passes each survivor may take the place
+// of the absorbed input vertex that best fits its quadric: every output vertex is an input vertex
+// with its position, normal, uv and skin weights.
 //
 // Units: metres. Lossy: the result carries the error it reached.
 #pragma once
