@@ -11,6 +11,10 @@
 // TriConnectivity::is_collapse_ok (which allocates and compares strings on every call in
 // OpenMesh 9) rewritten: locked vertex, deleted elements, the link condition, boundary cases,
 // the tetrahedron case, at least two faces at v0.
+// A collapse that would leave an input vertex absorbed by the removed vertex, or by one of its
+// other neighbours, farther from the new faces than the pass's error goal is deferred to a later
+// pass (the quadric alone let thin tips slide back: bench_decimate 8 -> 11 of 12 rows no worse
+// than meshoptimizer on Hausdorff, at 1.8x the time).
 //
 // ModSkinWeightsT forbids collapsing two vertices whose skin weights differ by more than a
 // threshold (L1 distance of the influence distributions). Human-specific: it keeps the vertex
