@@ -7,6 +7,51 @@
 
 namespace bb::runtime {
 
+namespace {
+
+// Tight quads: the 8 corners corner(k) (offsets from the snapshot's centre, world metres) projected
+// on the snapshot plane, in window units. Whole texels and one texel of margin, inside the window:
+// the quad (`quad`). The snapshot clears three texels more (`snapshot`), which the impostor
+// shader's taps at the quad's border reach (else they would read what an earlier snapshot left).
+struct WindowRects {
+  glm::vec4 quad, snapshot;
+};
+template <typename Corner>
+WindowRects window_rects(const SnapshotCamera& cam, int window_size, Corner&& corner) {
+  glm::vec2 rmin(1e30f), rmax(-1e30f);
+  for (int k = 0; k < 8; ++k) {
+    const glm::vec3 d = corner(k);
+    float s = 1.0f / cam.half_size;
+    if (cam.perspective) s *= cam.distance / std::max(cam.distance + glm::dot(d, cam.vo), 1e-3f * cam.distance);
+    const glm::vec2 q(glm::dot(d, cam.ho) * s, glm::dot(d, cam.uo) * s);
+    rmin = glm::min(rmin, q);
+    rmax = glm::max(rmax, q);
+  }
+  const float texel = 2.0f / static_cast<float>(window_size);
+  const glm::vec2 t0 = glm::floor(rmin / texel), t1 = glm::ceil(rmax / texel);
+  return {glm::vec4(glm::clamp((t0 - 1.0f) * texel, -1.0f, 1.0f), glm::clamp((t1 + 1.0f) * texel, -1.0f, 1.0f)),
+          glm::vec4(glm::clamp((t0 - 4.0f) * texel, -1.0f, 1.0f), glm::clamp((t1 + 4.0f) * texel, -1.0f, 1.0f))};
+}
+
+// What the GPU needs to draw one snapshot of `instance` with `cam` (centred on `centre`, a sphere
+// of `radius` metres) into `win` of a `page`-pixel atlas page, clearing `rect` of the window.
+SnapshotGpu snapshot_gpu(const InstanceGpu& instance, const SnapshotCamera& cam, const glm::vec3& centre, float radius,
+                         const AtlasWindow& win, float page, const glm::vec4& rect) {
+  SnapshotGpu s;
+  s.instance = instance;
+  s.ho_half = glm::vec4(cam.ho, cam.half_size);
+  s.uo_dist = glm::vec4(cam.uo, cam.distance);
+  s.vo = glm::vec4(cam.vo, cam.perspective ? 1.0f : 0.0f);
+  s.ta = glm::vec4(centre, radius);
+  const float half = static_cast<float>(win.size) / page;  // NDC half extent = size / page
+  s.window = glm::vec4(-1.0f + (2.0f * win.x + win.size) / page, -1.0f + (2.0f * win.y + win.size) / page, half,
+                       static_cast<float>(win.page));
+  s.rect = rect;
+  return s;
+}
+
+}  // namespace
+
 glm::vec3 character_ta(const Model& m, const Character& ch, float time) {
   const auto baked = m.baked_clips();
   const int clip = m.clips.empty() ? 0 : std::clamp(ch.clip, 0, static_cast<int>(m.clips.size()) - 1);
@@ -183,38 +228,18 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
           cs.rect = glm::vec4(-1, -1, 1, 1);
           glm::vec4 snap_rect = cs.rect;
           if (config_.tight_quads) {
-            // Project the corners of this frame's pose box on the snapshot plane (window units).
+            // This frame's pose box.
             const auto& b0 = bc.bounds[f0];
             const auto& b1 = bc.bounds[f1];
             const glm::vec3 lo = glm::min(b0[0], b1[0]) * ch.scale, hi = glm::max(b0[1], b1[1]) * ch.scale;
-            glm::vec2 rmin(1e30f), rmax(-1e30f);
-            for (int k = 0; k < 8; ++k) {
+            const WindowRects r = window_rects(sc, win.size, [&](int k) {
               const glm::vec3 p((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
-              const glm::vec3 d = ch.position + glm::vec3(cy * p.x + sy * p.z, p.y, -sy * p.x + cy * p.z) - ta;
-              float s = 1.0f / sc.half_size;
-              if (sc.perspective) s *= sc.distance / std::max(sc.distance + glm::dot(d, sc.vo), 1e-3f * sc.distance);
-              const glm::vec2 q(glm::dot(d, sc.ho) * s, glm::dot(d, sc.uo) * s);
-              rmin = glm::min(rmin, q);
-              rmax = glm::max(rmax, q);
-            }
-            // Whole texels, one texel of margin, inside the window: the quad. The snapshot clears
-            // three texels more, which the impostor shader's taps at the quad's border reach
-            // (else they would read what an earlier snapshot left there).
-            const float texel = 2.0f / static_cast<float>(win.size);
-            const glm::vec2 t0 = glm::floor(rmin / texel), t1 = glm::ceil(rmax / texel);
-            cs.rect = glm::vec4(glm::clamp((t0 - 1.0f) * texel, -1.0f, 1.0f), glm::clamp((t1 + 1.0f) * texel, -1.0f, 1.0f));
-            snap_rect = glm::vec4(glm::clamp((t0 - 4.0f) * texel, -1.0f, 1.0f), glm::clamp((t1 + 4.0f) * texel, -1.0f, 1.0f));
+              return ch.position + glm::vec3(cy * p.x + sy * p.z, p.y, -sy * p.x + cy * p.z) - ta;
+            });
+            cs.rect = r.quad;
+            snap_rect = r.snapshot;
           }
-          SnapshotGpu s;
-          s.instance = inst;
-          s.ho_half = glm::vec4(sc.ho, sc.half_size);
-          s.uo_dist = glm::vec4(sc.uo, sc.distance);
-          s.vo = glm::vec4(sc.vo, sc.perspective ? 1.0f : 0.0f);
-          s.ta = glm::vec4(ta, radius);
-          const float half = static_cast<float>(win.size) / page;  // NDC half extent = size / page
-          s.window = glm::vec4(-1.0f + (2.0f * win.x + win.size) / page, -1.0f + (2.0f * win.y + win.size) / page, half,
-                               static_cast<float>(win.page));
-          s.rect = snap_rect;
+          SnapshotGpu s = snapshot_gpu(inst, sc, ta, radius, win, page, snap_rect);
           const int slod = config_.snapshot_lod_from_screen ? std::min(lod_for(pixels, camera.height), lods - 1)
                                                             : window_lod[win.size_class];
           plan_.snapshots[slod].push_back(s);
@@ -366,33 +391,16 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
       pc.rect = glm::vec4(-1, -1, 1, 1);
       glm::vec4 snap_rect = pc.rect;
       if (config_.tight_quads) {
-        // The part's box (palette space, over all frames) projected on the snapshot plane.
-        glm::vec2 rmin(1e30f), rmax(-1e30f);
-        for (int k = 0; k < 8; ++k) {
+        // The part's box (palette space, over all frames).
+        const WindowRects rr = window_rects(cam, win.size, [&](int k) {
           const glm::vec3 q((k & 1) ? bp.box_max.x : bp.box_min.x, (k & 2) ? bp.box_max.y : bp.box_min.y,
                             (k & 4) ? bp.box_max.z : bp.box_min.z);
-          const glm::vec3 d = glm::vec3(bone[p] * glm::vec4(q, 1.0f)) - centre[p];
-          float s = 1.0f / cam.half_size;
-          if (cam.perspective) s *= cam.distance / std::max(cam.distance + glm::dot(d, cam.vo), 1e-3f * cam.distance);
-          const glm::vec2 v(glm::dot(d, cam.ho) * s, glm::dot(d, cam.uo) * s);
-          rmin = glm::min(rmin, v);
-          rmax = glm::max(rmax, v);
-        }
-        const float texel = 2.0f / static_cast<float>(win.size);
-        const glm::vec2 t0 = glm::floor(rmin / texel), t1 = glm::ceil(rmax / texel);
-        pc.rect = glm::vec4(glm::clamp((t0 - 1.0f) * texel, -1.0f, 1.0f), glm::clamp((t1 + 1.0f) * texel, -1.0f, 1.0f));
-        snap_rect = glm::vec4(glm::clamp((t0 - 4.0f) * texel, -1.0f, 1.0f), glm::clamp((t1 + 4.0f) * texel, -1.0f, 1.0f));
+          return glm::vec3(bone[p] * glm::vec4(q, 1.0f)) - centre[p];
+        });
+        pc.rect = rr.quad;
+        snap_rect = rr.snapshot;
       }
-      SnapshotGpu s;
-      s.instance = inst;
-      s.ho_half = glm::vec4(cam.ho, cam.half_size);
-      s.uo_dist = glm::vec4(cam.uo, cam.distance);
-      s.vo = glm::vec4(cam.vo, cam.perspective ? 1.0f : 0.0f);
-      s.ta = glm::vec4(centre[p], r);
-      const float half = static_cast<float>(win.size) / page;
-      s.window = glm::vec4(-1.0f + (2.0f * win.x + win.size) / page, -1.0f + (2.0f * win.y + win.size) / page, half,
-                           static_cast<float>(win.page));
-      s.rect = snap_rect;
+      SnapshotGpu s = snapshot_gpu(inst, cam, centre[p], r, win, page, snap_rect);
       s.part = glm::vec4(static_cast<float>(p), 0.0f, 0.0f, 0.0f);
       plan_.snapshots[slod].push_back(s);
       ++st.part_snapshots;
