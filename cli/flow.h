@@ -45,6 +45,7 @@ struct FlowSettings {
   bool perspective_snapshots = true;        // false: the paper's orthographic snapshot camera
   bool hold_poses = false;                  // every human keeps one pose (no pose lag)
   bool part_cards = false;                  // ImpostorConfig::part_cards (one card per body part)
+  int refresh_budget = 0;                   // CacheConfig::refresh_budget (0: no limit)
   int clip = -1;                 // -1: a clip named like "walk" if any, else 0
   float clip_speed_mps = 0;      // speed the clip walks at; 0: from the clip name "..._1.20mps" or none
   std::vector<int> keep_frames;  // measured frame indices whose images are returned
@@ -58,6 +59,13 @@ struct FlowFrameImages {
 struct FlowResult {
   int humans = 0, frames = 0, width = 0, height = 0;
   double geometry_ms = 0, impostor_ms = 0;  // mean per frame
+  // Spread of the per-frame times over the measured frames: 95th percentile, worst, and standard
+  // deviation (ms). What a crowd-level refresh budget (CacheConfig::refresh_budget) flattens.
+  struct Spread {
+    double p95 = 0, max = 0, sd = 0;
+  } geometry_spread, impostor_spread;
+  double deferred_refreshes = 0;            // mean stale impostors held back per frame by the budget
+  int snapshots_max = 0;                    // most impostors refreshed in one measured frame
   double ratio = 0;                         // impostor / geometry
   double refresh_fraction = 0;              // mean snapshots / impostors
   double psnr_db = 0, ssim = 0;             // means over compared frames
@@ -92,6 +100,7 @@ struct FlowArgs {
   std::string impostor_edges = "coverage", snapshot_lod = "screen", snapshot_camera = "perspective";
   bool hold_poses = false;
   bool impostor_parts = false;
+  int refresh_budget = 0;
   bool quiet = false;  // no summary on stdout (the demo prints its own)
   std::string scaling_list = "20,100,500,1000,2000,5000,10000";
   int scaling_frames = 10;

@@ -39,6 +39,23 @@ float speed_from_name(const std::string& name) {
   return std::strtof(name.substr(b, p - b).c_str(), nullptr);
 }
 
+// 95th percentile (nearest rank), worst and standard deviation of per-frame times.
+FlowResult::Spread spread(std::vector<double> t) {
+  FlowResult::Spread s;
+  if (t.empty()) return s;
+  double mean = 0;
+  for (double v : t) mean += v;
+  mean /= static_cast<double>(t.size());
+  double var = 0;
+  for (double v : t) var += (v - mean) * (v - mean);
+  s.sd = std::sqrt(var / static_cast<double>(t.size()));
+  std::sort(t.begin(), t.end());
+  s.max = t.back();
+  const std::size_t rank = static_cast<std::size_t>(std::ceil(0.95 * static_cast<double>(t.size())));
+  s.p95 = t[std::clamp<std::size_t>(rank, 1, t.size()) - 1];
+  return s;
+}
+
 }  // namespace
 
 Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, const std::string& device) {
@@ -62,6 +79,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   config.snapshot_lod_from_screen = s.snapshot_lod_from_screen;
   config.perspective_snapshots = s.perspective_snapshots;
   config.part_cards = s.part_cards;
+  config.cache.refresh_budget = s.refresh_budget;
   DrawOptions draw_options;
   draw_options.edges = s.impostor_edges == "coverage"  ? ImpostorEdges::kAlphaToCoverage
                        : s.impostor_edges == "test"    ? ImpostorEdges::kAlphaTest
@@ -118,6 +136,8 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
 
   double g_ms = 0, i_ms = 0, refresh = 0, psnr_sum = 0, ssim_sum = 0, tri_g = 0, tri_s = 0, atlas_use = 0, cards = 0;
   double psnr_min = std::numeric_limits<double>::infinity();
+  double deferred = 0;
+  std::vector<double> g_times, i_times;  // per measured frame, ms
   int compared = 0, atlas_pages = 0;
   double class_se[3] = {0, 0, 0}, class_n[3] = {0, 0, 0};
   const int total = s.warmup + s.frames;
@@ -156,6 +176,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
       const FramePlan& plan = draw(**target_g, RenderMode::kGeometry, &ms);
       if (measured) {
         g_ms += ms;
+        g_times.push_back(ms);
         tri_g += plan.stats.geometry_triangles;
       }
       if (compare || keep) imgs.geometry = (*target_g)->read_rgba();
@@ -164,6 +185,9 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
       const FramePlan& plan = draw(**target_i, RenderMode::kImpostor, &ms);
       if (measured) {
         i_ms += ms;
+        i_times.push_back(ms);
+        deferred += plan.stats.deferred_refreshes;
+        out.snapshots_max = std::max(out.snapshots_max, plan.stats.snapshots);
         refresh += plan.stats.refresh_fraction;
         tri_s += plan.stats.snapshot_triangles;
         cards += plan.stats.part_cards;
@@ -219,6 +243,9 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   out.geometry_triangles = tri_g / n;
   out.snapshot_triangles = tri_s / n;
   out.part_cards = cards / n;
+  out.deferred_refreshes = deferred / n;
+  out.geometry_spread = spread(g_times);
+  out.impostor_spread = spread(i_times);
   out.atlas_pixel_use = atlas_use / n;
   out.atlas_pages = atlas_pages;
   return out;

@@ -50,6 +50,26 @@ SnapshotGpu snapshot_gpu(const InstanceGpu& instance, const SnapshotCamera& cam,
   return s;
 }
 
+// The impostor of a character whose Ta is at `ta` now, from its cached snapshot `cs`.
+template <typename State>
+BillboardGpu billboard(const glm::vec3& ta, const State& cs, float page) {
+  const AtlasWindow& win = cs.window;
+  return BillboardGpu{glm::vec4(ta, cs.half_size),
+                      glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
+                      glm::vec4(static_cast<float>(win.page), 0.0f, 0.0f, 0.0f), cs.rect};
+}
+
+// How far past the posture threshold: the largest relative change of the four squared
+// distances over `threshold` (as posture_changed, whose test is this > 1).
+float posture_staleness(const std::array<float, 4>& stored, const std::array<float, 4>& now, float threshold) {
+  float worst = 0.0f;
+  for (int k = 0; k < 4; ++k) {
+    const float ref = stored[k] > 0.0f ? stored[k] : 1.0f;
+    worst = std::max(worst, std::abs(now[k] - stored[k]) / ref);
+  }
+  return worst / std::max(threshold, 1e-6f);
+}
+
 }  // namespace
 
 glm::vec3 character_ta(const Model& m, const Character& ch, float time) {
@@ -139,6 +159,10 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
   std::array<int, 8> window_lod{};
   for (int w = 0; w < config_.windows.count; ++w) window_lod[w] = lod_for(static_cast<float>(config_.windows.size[w]), camera.height);
 
+  const bool budget = cc.refresh_budget > 0 && parts_ == 1;
+  int budget_left = cc.refresh_budget;
+  pending_.clear();
+
   for (std::size_t i = 0; i < n; ++i) {
     const Character& ch = crowd[i];
     const float radius = m.radius * ch.scale;
@@ -203,30 +227,37 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
         const auto& p0 = bc.posture[f0];
         const auto& p1 = bc.posture[f1];
         for (int k = 0; k < 4; ++k) posture[k] = p0[k] + (p1[k] - p0[k]) * blend;
+        const bool must = refresh;  // no usable snapshot: refreshed whatever the budget
+        float staleness = 0.0f;
         if (!refresh) {
           const float w = distance_weight(cc, glm::distance(ta, camera.eye));
           if (cc.view_test) {
-            const float cthr = w == 1.0f ? cos_view : std::cos(std::min(glm::radians(cc.view_threshold_deg) * w, 3.14159265f));
-            if (rotation_cosine(cs.view, view) < cthr) {
+            const float thr = std::min(glm::radians(cc.view_threshold_deg) * w, 3.14159265f);
+            const float cthr = w == 1.0f ? cos_view : std::cos(thr);
+            const float c = rotation_cosine(cs.view, view);
+            if (c < cthr) {
               refresh = true;
               ++st.view_refreshes;
+              if (budget) staleness = std::acos(std::clamp(c, -1.0f, 1.0f)) / std::max(thr, 1e-6f);
             }
           }
-          if (cc.posture_test && !refresh && posture_changed(cs.posture, posture, cc.posture_threshold * w)) {
+          if (cc.posture_test && (budget || !refresh) && posture_changed(cs.posture, posture, cc.posture_threshold * w)) {
+            if (!refresh) ++st.posture_refreshes;
             refresh = true;
-            ++st.posture_refreshes;
+            if (budget) staleness = std::max(staleness, posture_staleness(cs.posture, posture, cc.posture_threshold * w));
           }
         } else if (!cs.valid) {
           ++st.new_snapshots;
         }
         const AtlasWindow& win = cs.window;
         if (refresh) {
-          cs.valid = true;
-          cs.view = view;
-          cs.posture = posture;
-          cs.half_size = sc.half_size;
-          cs.rect = glm::vec4(-1, -1, 1, 1);
-          glm::vec4 snap_rect = cs.rect;
+          CacheState next = cs;
+          next.valid = true;
+          next.view = view;
+          next.posture = posture;
+          next.half_size = sc.half_size;
+          next.rect = glm::vec4(-1, -1, 1, 1);
+          glm::vec4 snap_rect = next.rect;
           if (config_.tight_quads) {
             // This frame's pose box.
             const auto& b0 = bc.bounds[f0];
@@ -236,20 +267,28 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
               const glm::vec3 p((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
               return ch.position + glm::vec3(cy * p.x + sy * p.z, p.y, -sy * p.x + cy * p.z) - ta;
             });
-            cs.rect = r.quad;
+            next.rect = r.quad;
             snap_rect = r.snapshot;
           }
-          SnapshotGpu s = snapshot_gpu(inst, sc, ta, radius, win, page, snap_rect);
           const int slod = config_.snapshot_lod_from_screen ? std::min(lod_for(pixels, camera.height), lods - 1)
                                                             : window_lod[win.size_class];
-          plan_.snapshots[slod].push_back(s);
-          ++st.snapshots;
-          st.snapshot_triangles += m.lods[slod].triangle_count();
+          const BillboardGpu card = billboard(ta, next, page);
+          if (must || !budget) {
+            cs = next;
+            plan_.snapshots[slod].push_back(snapshot_gpu(inst, sc, ta, radius, win, page, snap_rect));
+            ++st.snapshots;
+            st.snapshot_triangles += m.lods[slod].triangle_count();
+            --budget_left;
+          } else {
+            // Stale: drawn from its old snapshot unless the budget reaches it below.
+            pending_.push_back(PendingRefresh{staleness, static_cast<std::uint32_t>(i),
+                                              static_cast<std::uint32_t>(plan_.billboards.size()), slod, next,
+                                              snapshot_gpu(inst, sc, ta, radius, win, page, snap_rect), card,
+                                              m.lods[slod].triangle_count()});
+          }
         }
-        plan_.billboards.push_back(BillboardGpu{
-            glm::vec4(ta, cs.half_size),
-            glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
-            glm::vec4(static_cast<float>(win.page), 0.0f, 0.0f, 0.0f), cs.rect});
+        // The old snapshot is drawn where the character stands now (Ta moves with it).
+        plan_.billboards.push_back(billboard(ta, cs, page));
         ++st.impostors;
         ++st.impostors_per_window[win.size_class];
       }
@@ -261,6 +300,24 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
       ++st.geometry_per_lod[std::min(lod, 7)];
       st.geometry_triangles += m.lods[lod].triangle_count();
     }
+  }
+  // The budget left goes to the stalest; the others wait (section 7, item 1).
+  if (!pending_.empty()) {
+    const std::size_t take = static_cast<std::size_t>(std::clamp(budget_left, 0, static_cast<int>(pending_.size())));
+    // Most stale first; ties to the lower index, so the choice does not depend on the sort.
+    auto staler = [](const PendingRefresh& a, const PendingRefresh& b) {
+      return a.staleness != b.staleness ? a.staleness > b.staleness : a.character < b.character;
+    };
+    if (take < pending_.size()) std::nth_element(pending_.begin(), pending_.begin() + take, pending_.end(), staler);
+    for (std::size_t k = 0; k < take; ++k) {
+      const PendingRefresh& r = pending_[k];
+      cache_[r.character] = r.state;
+      plan_.billboards[r.billboard] = r.card;
+      plan_.snapshots[r.lod].push_back(r.snapshot);
+      ++st.snapshots;
+      st.snapshot_triangles += r.triangles;
+    }
+    st.deferred_refreshes = static_cast<int>(pending_.size() - take);
   }
   st.refresh_fraction = st.impostors > 0 ? static_cast<float>(st.snapshots) / static_cast<float>(st.impostors) : 0.0f;
   if (st.part_cards > 0) st.refresh_fraction = static_cast<float>(st.part_snapshots) / static_cast<float>(st.part_cards);

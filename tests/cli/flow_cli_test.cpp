@@ -106,10 +106,39 @@ TEST(FlowCli, PartCardsBeatWholeImpostorsAtEightDegrees) {
   EXPECT_GT(jp["ssim"].get<double>(), jw["ssim"].get<double>());
 }
 
+// The crowd-level refresh budget (the paper's section 7, item 1) caps the snapshots of every frame;
+// the stale impostors it holds back are reported.
+TEST(FlowCli, RefreshBudgetCapsTheSnapshotsPerFrame) {
+  std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
+  fs::path d = fs::temp_directory_path() / "bb_flow_cli_test_budget";
+  const std::string args = "flow --model " + model + " --frames 10 --size 320x256 --posture 0.1 --view 2 --orbit 30 --json -o " +
+                           d.string();
+  Out free = run(args);
+  if (free.text.find("EGL") != std::string::npos && free.status != 0) GTEST_SKIP() << "no headless OpenGL: " << free.text;
+  ASSERT_EQ(free.status, 0) << free.text;
+  Out capped = run(args + " --refresh-budget 2");
+  ASSERT_EQ(capped.status, 0) << capped.text;
+  auto jf = nlohmann::json::parse(last_json_line(free.text));
+  auto jc = nlohmann::json::parse(last_json_line(capped.text));
+  EXPECT_GT(jf["snapshots_max"].get<int>(), 2);  // these thresholds want more than 2 in some frame
+  EXPECT_FALSE(jf.contains("refresh_budget"));
+  EXPECT_EQ(jc["refresh_budget"], 2);
+  EXPECT_LE(jc["snapshots_max"].get<int>(), 2);
+  EXPECT_LE(jc["refresh_fraction"].get<double>(), 2.0 / 20.0 + 1e-6);  // float stats
+  EXPECT_GT(jc["deferred_refreshes_per_frame"].get<double>(), 0.0);
+  for (const char* path : {"geometry", "impostor"}) {
+    const auto& s = jc["frame_ms_spread"][path];
+    EXPECT_GE(s["max"].get<double>(), s["p95"].get<double>()) << path;
+    EXPECT_GE(s["sd"].get<double>(), 0.0) << path;
+  }
+}
+
 TEST(FlowCli, BadFlagsAreErrors) {
   for (const char* args : {"flow --size 12", "flow --mode fast", "flow --posture -1", "flow --view abc",
                            "flow --sweep size", "flow --model /nonexistent.glb --frames 1",
-                           "flow --impostor-edges soft", "flow --snapshot-lod best", "flow --snapshot-camera fisheye"}) {
+                           "flow --impostor-edges soft", "flow --snapshot-lod best", "flow --snapshot-camera fisheye",
+                           "flow --refresh-budget -1", "flow --refresh-budget 2 --impostor-parts"}) {
     Out o = run(args);
     EXPECT_NE(o.status, 0) << args;
     EXPECT_NE(o.text.find("flow"), std::string::npos) << args << ": " << o.text;

@@ -220,6 +220,58 @@ TEST(FramePlanner, CacheTestsDriveSnapshots) {
   EXPECT_EQ(planner.plan(crowd, cam, 0.26f, RenderMode::kImpostor).stats.snapshots, 5);
 }
 
+// The paper's section 7, item 1: at most `refresh_budget` impostors refreshed per frame, the
+// stalest first, the others kept one more frame; new impostors are refreshed whatever the budget.
+TEST(FramePlanner, RefreshBudgetServesTheStalestFirst) {
+  Model m = tiny_model();
+  Crowd crowd(m);
+  for (int i = 0; i < 5; ++i) crowd.add(Character{glm::vec3(2.0f * i - 4.0f, 0, 0), 0.0f, 1.0f, 0, 0.0f, 0.0f});
+  ImpostorConfig cfg;
+  cfg.cache.posture_test = false;
+  cfg.cache.view_threshold_deg = 8.0f;
+  cfg.cache.refresh_budget = 1;
+  FramePlanner planner(m, cfg);
+  SceneCamera cam;
+  cam.eye = {0, 1.5f, 30};
+  cam.target = {0, 1.5f, 0};
+  auto s0 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(s0.snapshots, 5);  // new: not held back by the budget
+  EXPECT_EQ(s0.deferred_refreshes, 0);
+  // Characters 1..4 turn by 10, 20, 30, 40 degrees: four stale, one refreshed per frame.
+  for (int i = 1; i < 5; ++i) crowd[i].yaw = glm::radians(10.0f * i);
+  const FramePlan& a = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+  EXPECT_EQ(a.stats.snapshots, 1);
+  EXPECT_EQ(a.stats.deferred_refreshes, 3);
+  EXPECT_EQ(a.stats.view_refreshes, 4);
+  EXPECT_EQ(a.billboards.size(), 5u);  // the deferred ones still drawn, from their old snapshot
+  // Character 4 (the stalest) was the one: 5 more degrees keep it fresh, so three are left.
+  crowd[4].yaw = glm::radians(45.0f);
+  auto b = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(b.snapshots, 1);
+  EXPECT_EQ(b.deferred_refreshes, 2);
+  auto c = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(c.deferred_refreshes, 1);
+  auto d = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(d.snapshots, 1);
+  EXPECT_EQ(d.deferred_refreshes, 0);
+  EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.snapshots, 0);
+  // Without a budget the same turn refreshes all four at once.
+  planner.config().cache.refresh_budget = 0;
+  for (int i = 1; i < 5; ++i) crowd[i].yaw = glm::radians(10.0f * i + 90.0f);
+  auto e = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(e.snapshots, 4);
+  EXPECT_EQ(e.deferred_refreshes, 0);
+  // Posture staleness ranks too: at a 0 threshold every moving character is stale; budget 2.
+  planner.config().cache.refresh_budget = 2;
+  planner.config().cache.view_test = false;
+  planner.config().cache.posture_test = true;
+  planner.config().cache.posture_threshold = 0.0f;
+  for (std::size_t i = 0; i < crowd.size(); ++i) crowd[i].speed = 1.0f;
+  auto f = planner.plan(crowd, cam, 0.25f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(f.snapshots, 2);
+  EXPECT_EQ(f.deferred_refreshes, 3);
+}
+
 TEST(FramePlanner, WindowSizeCullingAndNearSwitch) {
   Model m = tiny_model();
   Crowd crowd(m);

@@ -139,6 +139,7 @@ struct FrameStats {
   float refresh_fraction = 0;  // snapshots / impostors (0 when no impostor)
   int atlas_fallbacks = 0;   // wanted an impostor, atlas full: drawn as geometry
   int posture_refreshes = 0, view_refreshes = 0, window_refreshes = 0, new_snapshots = 0;
+  int deferred_refreshes = 0;  // stale impostors kept one more frame by CacheConfig::refresh_budget
   std::array<int, 8> geometry_per_lod{};  // characters per LOD level
   std::array<int, 8> impostors_per_window{};
   std::size_t geometry_triangles = 0;  // drawn this frame by the geometry path
@@ -193,8 +194,19 @@ class FramePlanner {
     glm::vec4 rect{-1, -1, 1, 1};
     AtlasWindow window;
   };
+  // A stale impostor's refresh, held back until the frame's budget is shared out.
+  struct PendingRefresh {
+    float staleness = 0.0f;  // > 1: how far past its thresholds
+    std::uint32_t character = 0, billboard = 0;  // index in the crowd, in plan_.billboards
+    int lod = 0;
+    CacheState state;  // what the cache holds once refreshed
+    SnapshotGpu snapshot;
+    BillboardGpu card;
+    std::size_t triangles = 0;
+  };
   const Model* model_;
   ImpostorConfig config_;
+  std::vector<PendingRefresh> pending_;
   AtlasAllocator atlas_;
   std::vector<CacheState> cache_;
   std::vector<PartCache> part_cache_;  // [character * parts + part] when part cards are on

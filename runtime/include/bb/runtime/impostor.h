@@ -79,6 +79,15 @@ struct CacheConfig {
   // Optional distance weighting of both thresholds: threshold * max(1, distance / reference).
   bool distance_weighting = false;
   float reference_distance = 10.0f;  // metres
+  // The paper's section 7, item 1: a crowd-level refresh policy for a quasi-constant frame rate.
+  // At most this many impostors are refreshed per frame (0: no limit). Impostors without a usable
+  // snapshot (new, or their window size class changed) are always refreshed and count first;
+  // the budget left goes to the stale ones, most stale first (staleness: the larger of the view
+  // angle and the largest posture change, each over its threshold, so > 1), and the others keep
+  // their snapshot one more frame (FrameStats::deferred_refreshes). A deferred impostor only grows
+  // staler, so none waits for ever unless the budget is below the steady demand. Part cards
+  // ignore it (not yet).
+  int refresh_budget = 0;
 };
 
 // Multiplier of the thresholds for a character `distance` metres from the eye.
