@@ -61,6 +61,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   if (s.part_cards) {
     j["impostor_parts"] = r.parts;
     j["part_cards_per_frame"] = r.part_cards;
+    j["limb_cards"] = s.turn_limb_cards ? "turn" : "fixed";
   }
   auto split = [](const FlowResult::ErrorClass& c) {
     return ordered_json{{"mse", c.mse}, {"pixels", c.pixels}, {"share", c.share}};
@@ -144,6 +145,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (a.refresh_budget < 0) return fail("--refresh-budget: expected a count >= 0 (got " + std::to_string(a.refresh_budget) + ")");
   if (a.refresh_budget > 0 && a.impostor_parts) return fail("--refresh-budget does not apply to --impostor-parts yet");
   s.refresh_budget = a.refresh_budget;
+  if (a.limb_cards != "turn" && a.limb_cards != "fixed")
+    return fail("--limb-cards: expected turn or fixed (got \"" + a.limb_cards + "\")");
+  s.turn_limb_cards = a.limb_cards == "turn";
   s.distance_weighting = a.distance_weighting;
   s.orbit_deg_per_s = a.orbit;
   s.msaa = a.msaa;
@@ -329,6 +333,9 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_flag("--hold-poses", a->hold_poses, "Every human keeps one pose while walking (isolates the pose lag)");
   cmd->add_flag("--impostor-parts", a->impostor_parts,
                 "One impostor card per body part, carried by its bone between snapshots (less pose and view lag)");
+  cmd->add_option("--limb-cards", a->limb_cards,
+                  "With --impostor-parts: limb cards turn about the limb's axis to face the eye, or stay fixed to the bone")
+      ->capture_default_str();
   cmd->add_option("--refresh-budget", a->refresh_budget,
                   "At most N impostors refreshed per frame, the stalest first (0: no limit; the paper's future work)")
       ->capture_default_str();

@@ -80,6 +80,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   config.perspective_snapshots = s.perspective_snapshots;
   config.part_cards = s.part_cards;
   config.cache.refresh_budget = s.refresh_budget;
+  config.turn_limb_cards = s.turn_limb_cards;
   DrawOptions draw_options;
   draw_options.edges = s.impostor_edges == "coverage"  ? ImpostorEdges::kAlphaToCoverage
                        : s.impostor_edges == "test"    ? ImpostorEdges::kAlphaTest

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "bb/runtime/animation.h"
 
 namespace bb::runtime {
@@ -350,6 +352,13 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
   std::array<glm::mat4, kMaxBodyParts> bone;
   std::array<glm::vec3, kMaxBodyParts> centre;
   std::array<bool, kMaxBodyParts> due;
+  // Limb cards that turn about their axis (ImpostorConfig::turn_limb_cards), and by how much.
+  std::array<bool, kMaxBodyParts> turns;
+  std::array<glm::mat3, kMaxBodyParts> turn;
+  for (int p = 0; p < count; ++p) {
+    turns[p] = config_.turn_limb_cards && parts[p].elongation >= kLimbElongation && parts[p].flatness <= kLimbFlatness;
+    turn[p] = glm::mat3(1.0f);
+  }
   const bool all = !cs.valid;
   if (all) ++st.new_snapshots;
   bool window_change = false;
@@ -399,18 +408,32 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
   std::array<float, 4> posture;
   for (int k = 0; k < 4; ++k) posture[k] = bc.posture[f0][k] + (bc.posture[f1][k] - bc.posture[f0][k]) * blend;
   const float w = distance_weight(cc, glm::distance(ta, camera.eye));
+  // A limb card turns about the limb's axis to face the eye (the cylinder's picture does not
+  // change); the view test below then sees only the change of the angle between that axis and
+  // the line of sight.
+  for (int p = 0; p < count; ++p) {
+    if (!turns[p] || due[p]) continue;
+    const glm::vec3 n = glm::normalize(glm::mat3(bone[p]) * pcs[p].normal);
+    const glm::vec3 los = glm::normalize(centre[p] - camera.eye);
+    const glm::vec3 a = glm::normalize(glm::mat3(bone[p]) * parts[p].axis);
+    const glm::vec3 np = n - glm::dot(n, a) * a, lp = los - glm::dot(los, a) * a;
+    if (glm::dot(np, np) > 1e-6f && glm::dot(lp, lp) > 1e-6f)
+      turn[p] = glm::mat3(glm::rotate(glm::mat4(1.0f), std::atan2(glm::dot(a, glm::cross(np, lp)), glm::dot(np, lp)), a));
+  }
   if (!all) {
     if (cc.posture_test && posture_changed(cs.posture, posture, cc.posture_threshold * w)) {
       due.fill(true);
+      for (auto& t : turn) t = glm::mat3(1.0f);
       ++st.posture_refreshes;
     } else if (cc.view_test) {
       const float cthr = std::cos(std::min(glm::radians(cc.view_threshold_deg) * w, 3.14159265f));
       bool any = false;
       for (int p = 0; p < count; ++p) {
         if (due[p]) continue;
-        const glm::vec3 n = glm::normalize(glm::mat3(bone[p]) * pcs[p].normal);
+        const glm::vec3 n = turn[p] * glm::normalize(glm::mat3(bone[p]) * pcs[p].normal);
         const glm::vec3 los = glm::normalize(centre[p] - camera.eye);
         due[p] = glm::dot(n, los) < cthr;
+        if (due[p]) turn[p] = glm::mat3(1.0f);
         any |= due[p];
       }
       if (any) ++st.view_refreshes;
@@ -472,8 +495,8 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
         glm::vec4(glm::vec3(bone[p] * glm::vec4(pc.centre, 1.0f)), pc.half_size),
         glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
         glm::vec4(static_cast<float>(win.page), 0.0f, 0.0f, 0.0f), pc.rect,
-        glm::vec4(glm::vec3(bone[p] * glm::vec4(pc.axis_x, 0.0f)), 1.0f),
-        glm::vec4(glm::vec3(bone[p] * glm::vec4(pc.axis_y, 0.0f)), 1.0f)});
+        glm::vec4(turn[p] * glm::vec3(bone[p] * glm::vec4(pc.axis_x, 0.0f)), 1.0f),
+        glm::vec4(turn[p] * glm::vec3(bone[p] * glm::vec4(pc.axis_y, 0.0f)), 1.0f)});
     ++st.impostors_per_window[win.size_class];
     ++st.part_cards;
   }

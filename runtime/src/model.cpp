@@ -340,6 +340,52 @@ void Model::split_parts(std::span<const int> bones) {
     }
     bp.box_min = lo - glm::vec3(0.02f * bp.radius);
     bp.box_max = hi + glm::vec3(0.02f * bp.radius);
+    // Principal axes of the same points (the first frame sampled): covariance, then power
+    // rotations (below) for the eigenvalues and axes.
+    if (!rows.empty()) {
+      const glm::mat4 inv = glm::inverse(pal(rows.front(), bp.bone));
+      glm::dvec3 mean(0.0);
+      double count = 0;
+      std::vector<glm::dvec3> pts;
+      for (std::size_t v = 0; v < fine.vertices.size(); ++v) {
+        if (!used[p][v]) continue;
+        pts.emplace_back(glm::vec3(inv * glm::vec4(skin_at(fine.vertices[v], rows.front()), 1.0f)));
+        mean += pts.back();
+        count += 1;
+      }
+      if (count >= 3) {
+        mean /= count;
+        glm::dmat3 cov(0.0);
+        for (const auto& q : pts) cov += glm::outerProduct(q - mean, q - mean);
+        cov /= count;
+        // Jacobi rotations: cov = V diag(e) V^T, columns of V the principal axes.
+        glm::dmat3 a = cov, v(1.0);
+        for (int sweep = 0; sweep < 16; ++sweep) {
+          const double off = a[1][0] * a[1][0] + a[2][0] * a[2][0] + a[2][1] * a[2][1];
+          if (off < 1e-30) break;
+          for (int pi = 0; pi < 2; ++pi)
+            for (int qi = pi + 1; qi < 3; ++qi) {
+              if (std::abs(a[qi][pi]) < 1e-300) continue;
+              const double theta = 0.5 * std::atan2(2.0 * a[qi][pi], a[qi][qi] - a[pi][pi]);
+              const double c = std::cos(theta), sn = std::sin(theta);
+              glm::dmat3 r(1.0);  // rotation in the (pi, qi) plane
+              r[pi][pi] = c;
+              r[qi][qi] = c;
+              r[qi][pi] = sn;   // column qi, row pi
+              r[pi][qi] = -sn;  // column pi, row qi
+              a = glm::transpose(r) * a * r;
+              v = v * r;
+            }
+        }
+        std::array<int, 3> order{0, 1, 2};
+        std::sort(order.begin(), order.end(), [&](int x, int y) { return a[x][x] > a[y][y]; });
+        const double l1 = std::max(a[order[0]][order[0]], 0.0), l2 = std::max(a[order[1]][order[1]], 1e-12),
+                     l3 = std::max(a[order[2]][order[2]], 1e-12);
+        bp.axis = glm::vec3(glm::normalize(v[order[0]]));
+        bp.elongation = static_cast<float>(std::sqrt(std::max(l1, l2) / l2));
+        bp.flatness = static_cast<float>(std::sqrt(std::max(l2, l3) / l3));
+      }
+    }
   }
 }
 

@@ -515,6 +515,69 @@ TEST(BodyParts, ViewTestIgnoresTheCardsRollButNotItsTilt) {
   EXPECT_EQ(planner.plan(crowd, cam, 0.5f, RenderMode::kImpostor).stats.part_snapshots, 0);
 }
 
+// The hinge with a round arm: a triangular prism 1 m long and 0.1 m in radius along +Y.
+Model pole_model() {
+  Model m = hinge_model();
+  MeshLod& lod = m.lods[0];
+  lod.vertices.resize(3);
+  for (int end = 0; end < 2; ++end)
+    for (int k = 0; k < 3; ++k) {
+      Vertex v;
+      const float a = glm::radians(120.0f * k);
+      v.position = {0.1f * std::cos(a), 1.0f + end, 0.1f * std::sin(a)};
+      v.joints = glm::u16vec4(1, 0, 0, 0);
+      lod.vertices.push_back(v);
+    }
+  lod.indices = {0, 1, 2, 3, 4, 6, 4, 7, 6, 4, 5, 7, 5, 8, 7, 5, 3, 8, 3, 6, 8, 3, 5, 4, 6, 7, 8};
+  lod.primitives = {Primitive{0, static_cast<std::uint32_t>(lod.indices.size()), 0}};
+  m.bake(60.0f);
+  return m;
+}
+
+TEST(BodyParts, LimbCardsTurnAboutTheLimbAxis) {
+  Model m = pole_model();
+  const auto parts = m.body_parts();
+  ASSERT_EQ(parts.size(), 2u);
+  // The prism: elongated along +Y (sd 0.5 m against 0.05 m across: 7), round across (1); the
+  // root triangle is flat.
+  EXPECT_NEAR(std::abs(parts[1].axis.y), 1.0f, 1e-4f);
+  EXPECT_GT(parts[1].elongation, 5.0f);
+  EXPECT_NEAR(parts[1].flatness, 1.0f, 0.05f);
+  EXPECT_GT(parts[0].flatness, 100.0f);
+  Crowd crowd(m);
+  crowd.add(Character{glm::vec3(0, 0, 0), 0.0f, 1.0f, 0, 0.0f, 0.0f});
+  ImpostorConfig cfg;
+  cfg.part_cards = true;
+  cfg.cache.posture_test = false;
+  cfg.cache.view_threshold_deg = 8.0f;
+  SceneCamera cam;
+  cam.eye = {0, 1.5f, 30};
+  cam.target = {0, 1.5f, 0};
+  for (bool turn : {true, false}) {
+    cfg.turn_limb_cards = turn;
+    FramePlanner planner(m, cfg);
+    crowd[0].yaw = 0.0f;
+    EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.part_snapshots, 2);
+    // The character turns 20 degrees about +Y, the arm's axis: the root's card is refreshed;
+    // the arm's turns to face the eye (turn) or is refreshed (fixed).
+    crowd[0].yaw = glm::radians(20.0f);
+    const FramePlan& p = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+    EXPECT_EQ(p.stats.part_snapshots, turn ? 1 : 2) << turn;
+    const BillboardGpu& arm = p.billboards[1];
+    const glm::vec3 los = glm::normalize(glm::vec3(arm.ta_half) - cam.eye);
+    EXPECT_NEAR(glm::dot(glm::vec3(arm.axis_x), los), 0.0f, 1e-4f) << turn;
+    EXPECT_NEAR(glm::dot(glm::vec3(arm.axis_y), los), 0.0f, 1e-4f) << turn;
+  }
+  // Tilting the arm's axis towards the eye is still a view change: with the character facing +X,
+  // the arm's 45-degree bend about its +Z tilts it towards the eye, and its card is refreshed.
+  cfg.turn_limb_cards = true;
+  FramePlanner planner(m, cfg);
+  crowd[0].yaw = glm::radians(90.0f);
+  crowd[0].speed = 1.0f;
+  EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.part_snapshots, 2);
+  EXPECT_EQ(planner.plan(crowd, cam, 0.5f, RenderMode::kImpostor).stats.part_snapshots, 1);
+}
+
 TEST(BodyParts, CesiumManHasLimbParts) {
   std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data absent: " << path;

@@ -100,7 +100,13 @@ struct ImpostorConfig {
   // impostors 26.2; 30.4 against 31.7 with 2 texels + blending). Off by default: far better
   // quality between refreshes, but short of 28 dB at 8 degrees and slower.
   bool part_cards = false;
+  // Part cards of limbs (BodyPart::elongation >= kLimbElongation, flatness <= kLimbFlatness:
+  // thighs, shins, feet, upper arms, forearms on our body) turn about the limb's axis to face the
+  // eye between snapshots, as a cylinder looks the same turned about its axis; their view test is
+  // then the change of the angle between that axis and the line of sight.
+  bool turn_limb_cards = true;
 };
+inline constexpr float kLimbElongation = 2.0f, kLimbFlatness = 1.7f;
 
 // Per-instance data the GPU reads (16-byte aligned, plain floats).
 struct InstanceGpu {

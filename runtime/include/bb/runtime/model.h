@@ -133,6 +133,12 @@ struct BodyPart {
   glm::vec3 centre{0.0f};    // of the bounding sphere, same space
   float radius = 0.0f;       // metres
   float mass = 0.0f;         // share of the skin weight of the finest level (own joints only)
+  // Principal axis of the part's vertices (same space, unit) and how elongated the part is along
+  // it: the ratio of the standard deviations along the first and second principal axes (>= 1),
+  // and how flat its cross-section is: the same ratio for the second and third (>= 1). A limb
+  // (elongated, round across) looks nearly the same turned about this axis.
+  glm::vec3 axis{0.0f, 1.0f, 0.0f};
+  float elongation = 1.0f, flatness = 1.0f;
 };
 
 // Triangles of each body part, per mesh level: the level's index list regrouped, triangles at the
