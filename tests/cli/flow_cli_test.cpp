@@ -3,6 +3,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <string>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -159,5 +161,13 @@ TEST(DemoCli, WritesTheLodSetFramesChartsAndReport) {
   EXPECT_GT(j["main"]["geometry_ms"].get<double>(), 0);
   EXPECT_GE(j["posture_sweep"].size(), 5u);
   EXPECT_GE(j["view_sweep"].size(), 5u);
+  // The refresh budget's pair of runs: the capped one never refreshes more than its budget.
+  EXPECT_FALSE(j["refresh_budget"]["none"].contains("refresh_budget"));
+  const int budget = j["refresh_budget"]["capped"]["refresh_budget"].get<int>();
+  EXPECT_GT(budget, 0);
+  EXPECT_LE(j["refresh_budget"]["capped"]["snapshots_max"].get<int>(), budget);
+  std::ifstream md(d / "report.md");
+  const std::string report((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+  EXPECT_NE(report.find("## Refresh budget"), std::string::npos);
   EXPECT_NE(o.text.find("speed-up"), std::string::npos);
 }
