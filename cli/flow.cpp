@@ -69,6 +69,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["error_split"] = {{"interior", split(r.interior)}, {"edge", split(r.edge)}, {"one_only", split(r.one_only)}};
   j["geometry_triangles_per_frame"] = r.geometry_triangles;
   j["snapshot_triangles_per_frame"] = r.snapshot_triangles;
+  j["quad_texels_per_frame"] = r.quad_texels;
   j["atlas_pages_used"] = r.atlas_pages;
   j["atlas_pixel_use"] = r.atlas_pixel_use;
   return j;

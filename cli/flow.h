@@ -78,6 +78,7 @@ struct FlowResult {
     double mse = 0, pixels = 0, share = 0;
   } interior, edge, one_only;
   double geometry_triangles = 0, snapshot_triangles = 0;  // mean per frame
+  double quad_texels = 0;  // mean per frame: window texels under the impostor quads (their fill)
   double atlas_pixel_use = 0;
   int atlas_pages = 0;
   std::string device;

@@ -137,7 +137,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
 
   double g_ms = 0, i_ms = 0, refresh = 0, psnr_sum = 0, ssim_sum = 0, tri_g = 0, tri_s = 0, atlas_use = 0, cards = 0;
   double psnr_min = std::numeric_limits<double>::infinity();
-  double deferred = 0;
+  double deferred = 0, quad_texels = 0;
   std::vector<double> g_times, i_times;  // per measured frame, ms
   int compared = 0, atlas_pages = 0;
   double class_se[3] = {0, 0, 0}, class_n[3] = {0, 0, 0};
@@ -191,6 +191,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
         out.snapshots_max = std::max(out.snapshots_max, plan.stats.snapshots);
         refresh += plan.stats.refresh_fraction;
         tri_s += plan.stats.snapshot_triangles;
+        quad_texels += plan.stats.quad_texels;
         cards += plan.stats.part_cards;
         atlas_use += plan.stats.atlas_pixel_use;
         atlas_pages = std::max(atlas_pages, plan.stats.atlas_pages_used);
@@ -245,6 +246,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   out.snapshot_triangles = tri_s / n;
   out.part_cards = cards / n;
   out.deferred_refreshes = deferred / n;
+  out.quad_texels = quad_texels / n;
   out.geometry_spread = spread(g_times);
   out.impostor_spread = spread(i_times);
   out.atlas_pixel_use = atlas_use / n;

@@ -52,6 +52,32 @@ SnapshotGpu snapshot_gpu(const InstanceGpu& instance, const SnapshotCamera& cam,
   return s;
 }
 
+// Palette entry `entry`'s matrix (model space) between baked frames f0 and f1 of `bc`.
+glm::mat4 palette_matrix(std::span<const glm::vec4> pal, int entries, const BakedClip& bc, int f0, int f1, float blend,
+                         int entry) {
+  const glm::vec4* a = &pal[((bc.first_row + f0) * static_cast<std::size_t>(entries) + entry) * 3];
+  const glm::vec4* b = &pal[((bc.first_row + f1) * static_cast<std::size_t>(entries) + entry) * 3];
+  glm::mat4 pm(1.0f);
+  for (int r = 0; r < 3; ++r) {
+    const glm::vec4 row = a[r] + (b[r] - a[r]) * blend;
+    for (int c = 0; c < 4; ++c) pm[c][r] = row[c];
+  }
+  return pm;
+}
+
+// Model space -> world for character `ch` (scale, yaw about +Y, position).
+glm::mat4 placement(const Character& ch) {
+  const float cy = std::cos(ch.yaw), sy = std::sin(ch.yaw), sc = ch.scale;
+  return glm::mat4(glm::vec4(cy * sc, 0, -sy * sc, 0), glm::vec4(0, sc, 0, 0), glm::vec4(sy * sc, 0, cy * sc, 0),
+                   glm::vec4(ch.position, 1));
+}
+
+// Area of `rect` (window units, [-1, 1]^2) in texels of a `size`-texel window.
+float rect_texels(const glm::vec4& rect, int size) {
+  const float h = 0.5f * static_cast<float>(size);
+  return (rect.z - rect.x) * h * (rect.w - rect.y) * h;
+}
+
 // The impostor of a character whose Ta is at `ta` now, from its cached snapshot `cs`.
 template <typename State>
 BillboardGpu billboard(const glm::vec3& ta, const State& cs, float page) {
@@ -155,6 +181,9 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
   const float cos_view = std::cos(glm::radians(cc.view_threshold_deg));
   const float switch_px = static_cast<float>(config_.windows.size[0]) * config_.geometry_switch;
   const auto baked = m.baked_clips();
+  const auto parts = m.body_parts();
+  const auto pal = m.baked_palette();
+  const int np = static_cast<int>(m.palette.size());
   const float page = static_cast<float>(atlas_.page_size());
   const int lods = static_cast<int>(m.lods.size());
   // LOD of each window class (section 4.3: the snapshot uses the level that matches the window).
@@ -265,10 +294,30 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
             const auto& b0 = bc.bounds[f0];
             const auto& b1 = bc.bounds[f1];
             const glm::vec3 lo = glm::min(b0[0], b1[0]) * ch.scale, hi = glm::max(b0[1], b1[1]) * ch.scale;
-            const WindowRects r = window_rects(sc, win.size, [&](int k) {
+            WindowRects r = window_rects(sc, win.size, [&](int k) {
               const glm::vec3 p((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
               return ch.position + glm::vec3(cy * p.x + sy * p.z, p.y, -sy * p.x + cy * p.z) - ta;
             });
+            if (parts.size() > 1) {
+              // Tighter: the union of the body parts' boxes, each carried by its bone (a limb's
+              // box lies along the limb), within the pose's box.
+              const glm::mat4 place = placement(ch);
+              glm::vec4 q(1e30f, 1e30f, -1e30f, -1e30f), sn = q;
+              for (const BodyPart& bp : parts) {
+                const glm::mat4 bone = place * palette_matrix(pal, np, bc, f0, f1, blend, bp.bone);
+                const WindowRects rr = window_rects(sc, win.size, [&](int k) {
+                  const glm::vec3 c((k & 1) ? bp.box_max.x : bp.box_min.x, (k & 2) ? bp.box_max.y : bp.box_min.y,
+                                    (k & 4) ? bp.box_max.z : bp.box_min.z);
+                  return glm::vec3(bone * glm::vec4(c, 1.0f)) - ta;
+                });
+                q = glm::vec4(glm::min(glm::vec2(q), glm::vec2(rr.quad)), glm::max(glm::vec2(q.z, q.w), glm::vec2(rr.quad.z, rr.quad.w)));
+                sn = glm::vec4(glm::min(glm::vec2(sn), glm::vec2(rr.snapshot)),
+                               glm::max(glm::vec2(sn.z, sn.w), glm::vec2(rr.snapshot.z, rr.snapshot.w)));
+              }
+              r.quad = glm::vec4(glm::max(glm::vec2(r.quad), glm::vec2(q)), glm::min(glm::vec2(r.quad.z, r.quad.w), glm::vec2(q.z, q.w)));
+              r.snapshot = glm::vec4(glm::max(glm::vec2(r.snapshot), glm::vec2(sn)),
+                                     glm::min(glm::vec2(r.snapshot.z, r.snapshot.w), glm::vec2(sn.z, sn.w)));
+            }
             next.rect = r.quad;
             snap_rect = r.snapshot;
           }
@@ -291,6 +340,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
         }
         // The old snapshot is drawn where the character stands now (Ta moves with it).
         plan_.billboards.push_back(billboard(ta, cs, page));
+        st.quad_texels += rect_texels(cs.rect, win.size);
         ++st.impostors;
         ++st.impostors_per_window[win.size_class];
       }
@@ -313,6 +363,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
     if (take < pending_.size()) std::nth_element(pending_.begin(), pending_.begin() + take, pending_.end(), staler);
     for (std::size_t k = 0; k < take; ++k) {
       const PendingRefresh& r = pending_[k];
+      st.quad_texels += rect_texels(r.state.rect, r.state.window.size) - rect_texels(cache_[r.character].rect, r.state.window.size);
       cache_[r.character] = r.state;
       plan_.billboards[r.billboard] = r.card;
       plan_.snapshots[r.lod].push_back(r.snapshot);
@@ -346,9 +397,8 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
   const float page = static_cast<float>(atlas_.page_size());
   const auto pal = m.baked_palette();
   // Character placement x the part's bone matrix now (model space -> world).
-  const float cy = std::cos(ch.yaw), sy = std::sin(ch.yaw), sc = ch.scale;
-  const glm::mat4 place(glm::vec4(cy * sc, 0, -sy * sc, 0), glm::vec4(0, sc, 0, 0), glm::vec4(sy * sc, 0, cy * sc, 0),
-                        glm::vec4(ch.position, 1));
+  const float sc = ch.scale;
+  const glm::mat4 place = placement(ch);
   std::array<glm::mat4, kMaxBodyParts> bone;
   std::array<glm::vec3, kMaxBodyParts> centre;
   std::array<bool, kMaxBodyParts> due;
@@ -363,14 +413,7 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
   if (all) ++st.new_snapshots;
   bool window_change = false;
   for (int p = 0; p < count; ++p) {
-    const glm::vec4* a = &pal[((bc.first_row + f0) * static_cast<std::size_t>(np) + parts[p].bone) * 3];
-    const glm::vec4* b = &pal[((bc.first_row + f1) * static_cast<std::size_t>(np) + parts[p].bone) * 3];
-    glm::mat4 pm(1.0f);
-    for (int r = 0; r < 3; ++r) {
-      const glm::vec4 row = a[r] + (b[r] - a[r]) * blend;
-      for (int c = 0; c < 4; ++c) pm[c][r] = row[c];
-    }
-    bone[p] = place * pm;
+    bone[p] = place * palette_matrix(pal, np, bc, f0, f1, blend, parts[p].bone);
     centre[p] = glm::vec3(bone[p] * glm::vec4(parts[p].centre, 1.0f));
     const float depth = glm::dot(centre[p] - camera.eye, fwd);
     const float px = 2.0f * parts[p].radius * sc * ppm1 / std::max(depth, 1e-3f);
@@ -416,9 +459,9 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
     const glm::vec3 n = glm::normalize(glm::mat3(bone[p]) * pcs[p].normal);
     const glm::vec3 los = glm::normalize(centre[p] - camera.eye);
     const glm::vec3 a = glm::normalize(glm::mat3(bone[p]) * parts[p].axis);
-    const glm::vec3 np = n - glm::dot(n, a) * a, lp = los - glm::dot(los, a) * a;
-    if (glm::dot(np, np) > 1e-6f && glm::dot(lp, lp) > 1e-6f)
-      turn[p] = glm::mat3(glm::rotate(glm::mat4(1.0f), std::atan2(glm::dot(a, glm::cross(np, lp)), glm::dot(np, lp)), a));
+    const glm::vec3 nq = n - glm::dot(n, a) * a, lq = los - glm::dot(los, a) * a;  // across the axis
+    if (glm::dot(nq, nq) > 1e-6f && glm::dot(lq, lq) > 1e-6f)
+      turn[p] = glm::mat3(glm::rotate(glm::mat4(1.0f), std::atan2(glm::dot(a, glm::cross(nq, lq)), glm::dot(nq, lq)), a));
   }
   if (!all) {
     if (cc.posture_test && posture_changed(cs.posture, posture, cc.posture_threshold * w)) {
@@ -499,6 +542,7 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
         glm::vec4(turn[p] * glm::vec3(bone[p] * glm::vec4(pc.axis_y, 0.0f)), 1.0f)});
     ++st.impostors_per_window[win.size_class];
     ++st.part_cards;
+    st.quad_texels += rect_texels(pc.rect, win.size);
   }
   ++st.impostors;
   return true;

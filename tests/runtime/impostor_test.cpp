@@ -578,6 +578,60 @@ TEST(BodyParts, LimbCardsTurnAboutTheLimbAxis) {
   EXPECT_EQ(planner.plan(crowd, cam, 0.5f, RenderMode::kImpostor).stats.part_snapshots, 1);
 }
 
+// A whole impostor's quad is the union of its body parts' boxes, each carried by its bone, within
+// the pose's box: never smaller than what the skin covers, smaller than the pose's box seen
+// obliquely (a 3D box's depth widens its picture).
+TEST(BodyParts, WholeImpostorQuadHoldsTheSkinInsideThePoseBox) {
+  Model m = pole_model();
+  Model one = pole_model();
+  const int root[] = {0};
+  one.set_body_parts(root);
+  ASSERT_EQ(one.body_parts().size(), 1u);
+  SceneCamera cam;
+  cam.eye = {6, 5, 8};
+  cam.target = {0, 1, 0};
+  const float t = 0.5f;  // the arm bent 45 degrees
+  auto quad = [&](const Model& model, double* texels) {
+    Crowd crowd(model);
+    crowd.add(Character{glm::vec3(0), 0.3f, 1.0f, 0, 0.0f, 1.0f});
+    ImpostorConfig cfg;
+    FramePlanner planner(model, cfg);
+    const FramePlan& p = planner.plan(crowd, cam, t, RenderMode::kImpostor);
+    EXPECT_EQ(p.billboards.size(), 1u);
+    *texels = p.stats.quad_texels;
+    return p.billboards[0];
+  };
+  double texels_parts = 0, texels_box = 0;
+  const BillboardGpu bp = quad(m, &texels_parts), bb = quad(one, &texels_box);
+  EXPECT_LT(texels_parts, 0.9 * texels_box);
+  // Within the pose box's quad.
+  EXPECT_GE(bp.rect.x, bb.rect.x - 1e-6f);
+  EXPECT_GE(bp.rect.y, bb.rect.y - 1e-6f);
+  EXPECT_LE(bp.rect.z, bb.rect.z + 1e-6f);
+  EXPECT_LE(bp.rect.w, bb.rect.w + 1e-6f);
+  // Every skinned vertex, seen from the eye, falls inside the quad (on the card's plane at Ta).
+  std::vector<Transform> locals(m.nodes.size());
+  std::vector<glm::mat4> world(m.nodes.size()), pal(m.palette.size());
+  sample_clip(m, 0, t, locals);
+  world_matrices(m, locals, world);
+  palette_matrices(m, world, pal);
+  const glm::mat4 place = glm::rotate(glm::mat4(1), 0.3f, glm::vec3(0, 1, 0));
+  const glm::vec3 ta(bp.ta_half);
+  const float half = bp.ta_half.w;
+  const glm::vec3 vo = glm::normalize(ta - cam.eye), ho = glm::normalize(glm::cross(vo, cam.up)),
+                  uo = glm::cross(ho, vo);
+  const float d = glm::dot(ta - cam.eye, vo);
+  for (const Vertex& v : m.lods[0].vertices) {
+    const glm::vec3 w(place * pal[v.joints[0]] * glm::vec4(v.position, 1.0f));
+    const glm::vec3 q = cam.eye + (w - cam.eye) * (d / glm::dot(w - cam.eye, vo));
+    const glm::vec2 c(glm::dot(q - ta, ho) / half, glm::dot(q - ta, uo) / half);
+    EXPECT_GE(c.x, bp.rect.x);
+    EXPECT_LE(c.x, bp.rect.z);
+    EXPECT_GE(c.y, bp.rect.y);
+    EXPECT_LE(c.y, bp.rect.w);
+  }
+}
+
 TEST(BodyParts, CesiumManHasLimbParts) {
   std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data absent: " << path;

@@ -62,8 +62,11 @@ struct ImpostorConfig {
   // pixels stays geometry (1.0: where a texel of the largest window would cover a pixel).
   float geometry_switch = 1.0f;
   float snapshot_distance = 0.0f; // D of section 4.2 (orthographic); <= 0: 2 * radius
-  // Clear and draw only the part of each window the pose covers (its box projected on the
-  // snapshot plane) instead of the whole square: less fill for the snapshot and the quad.
+  // Clear and draw only the part of each window the pose covers instead of the whole square:
+  // less fill for the snapshot and the quad. The part is the pose's box projected on the snapshot
+  // plane, narrowed to the union of the body parts' boxes (Model::body_parts), each carried by its
+  // bone: a 3D box's depth widens its picture, and a limb's box lies along the limb. Flow test bed
+  // (20 humans, 1280x1024): 223k quad texels per frame instead of 277k, same PSNR to 0.01 dB.
   bool tight_quads = true;
   // Texels per screen pixel wanted when choosing the window (section 4.3 uses 1). 2 (default)
   // supersamples the snapshot: the impostor shader's taps over each pixel see its coverage, so
@@ -150,6 +153,7 @@ struct FrameStats {
   std::array<int, 8> impostors_per_window{};
   std::size_t geometry_triangles = 0;  // drawn this frame by the geometry path
   std::size_t snapshot_triangles = 0;  // drawn into the atlas this frame
+  double quad_texels = 0;              // window texels the impostor quads cover (their fill, in texels)
   int atlas_pages_used = 0, atlas_pages = 0, atlas_windows_used = 0;
   float atlas_pixel_use = 0;           // fraction of the used pages' pixels in windows
 };
