@@ -144,7 +144,6 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   s.hold_poses = a.hold_poses;
   s.part_cards = a.impostor_parts;
   if (a.refresh_budget < 0) return fail("--refresh-budget: expected a count >= 0 (got " + std::to_string(a.refresh_budget) + ")");
-  if (a.refresh_budget > 0 && a.impostor_parts) return fail("--refresh-budget does not apply to --impostor-parts yet");
   s.refresh_budget = a.refresh_budget;
   if (a.limb_cards != "turn" && a.limb_cards != "fixed")
     return fail("--limb-cards: expected turn or fixed (got \"" + a.limb_cards + "\")");

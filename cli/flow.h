@@ -66,7 +66,7 @@ struct FlowResult {
     double p95 = 0, max = 0, sd = 0;
   } geometry_spread, impostor_spread;
   double deferred_refreshes = 0;            // mean stale impostors held back per frame by the budget
-  int snapshots_max = 0;                    // most impostors refreshed in one measured frame
+  int snapshots_max = 0;                    // most impostors (part cards: cards) refreshed in one measured frame
   double ratio = 0;                         // impostor / geometry
   double refresh_fraction = 0;              // mean snapshots / impostors
   double psnr_db = 0, ssim = 0;             // means over compared frames

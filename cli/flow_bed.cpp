@@ -188,7 +188,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
         i_ms += ms;
         i_times.push_back(ms);
         deferred += plan.stats.deferred_refreshes;
-        out.snapshots_max = std::max(out.snapshots_max, plan.stats.snapshots);
+        out.snapshots_max = std::max(out.snapshots_max, plan.stats.part_cards > 0 ? plan.stats.part_snapshots : plan.stats.snapshots);
         refresh += plan.stats.refresh_fraction;
         tri_s += plan.stats.snapshot_triangles;
         quad_texels += plan.stats.quad_texels;

@@ -191,8 +191,10 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
   for (int w = 0; w < config_.windows.count; ++w) window_lod[w] = lod_for(static_cast<float>(config_.windows.size[w]), camera.height);
 
   const bool budget = cc.refresh_budget > 0 && parts_ == 1;
-  int budget_left = cc.refresh_budget;
+  budget_left_ = cc.refresh_budget;
   pending_.clear();
+  pending_parts_.clear();
+  if (parts_ > 1) refreshed_.assign(n, 0);
 
   for (std::size_t i = 0; i < n; ++i) {
     const Character& ch = crowd[i];
@@ -329,7 +331,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
             plan_.snapshots[slod].push_back(snapshot_gpu(inst, sc, ta, radius, win, page, snap_rect));
             ++st.snapshots;
             st.snapshot_triangles += m.lods[slod].triangle_count();
-            --budget_left;
+            --budget_left_;
           } else {
             // Stale: drawn from its old snapshot unless the budget reaches it below.
             pending_.push_back(PendingRefresh{staleness, static_cast<std::uint32_t>(i),
@@ -355,7 +357,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
   }
   // The budget left goes to the stalest; the others wait (section 7, item 1).
   if (!pending_.empty()) {
-    const std::size_t take = static_cast<std::size_t>(std::clamp(budget_left, 0, static_cast<int>(pending_.size())));
+    const std::size_t take = static_cast<std::size_t>(std::clamp(budget_left_, 0, static_cast<int>(pending_.size())));
     // Most stale first; ties to the lower index, so the choice does not depend on the sort.
     auto staler = [](const PendingRefresh& a, const PendingRefresh& b) {
       return a.staleness != b.staleness ? a.staleness > b.staleness : a.character < b.character;
@@ -371,6 +373,30 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
       st.snapshot_triangles += r.triangles;
     }
     st.deferred_refreshes = static_cast<int>(pending_.size() - take);
+  }
+  if (!pending_parts_.empty()) {
+    const std::size_t take = static_cast<std::size_t>(std::clamp(budget_left_, 0, static_cast<int>(pending_parts_.size())));
+    auto staler = [](const PendingPart& a, const PendingPart& b) {
+      return a.staleness != b.staleness ? a.staleness > b.staleness
+                                        : a.character != b.character ? a.character < b.character : a.part < b.part;
+    };
+    if (take < pending_parts_.size())
+      std::nth_element(pending_parts_.begin(), pending_parts_.begin() + take, pending_parts_.end(), staler);
+    for (std::size_t k = 0; k < take; ++k) {
+      const PendingPart& r = pending_parts_[k];
+      PartCache& pc = part_cache_[r.character * static_cast<std::size_t>(parts_) + r.part];
+      st.quad_texels += rect_texels(r.next.rect, r.next.window.size) - rect_texels(pc.rect, pc.window.size);
+      pc = r.next;
+      plan_.billboards[r.billboard] = r.card;
+      plan_.snapshots[r.lod].push_back(r.snapshot);
+      ++st.part_snapshots;
+      st.snapshot_triangles += r.triangles;
+      if (!refreshed_[r.character]) {
+        refreshed_[r.character] = 1;
+        ++st.snapshots;
+      }
+    }
+    st.deferred_refreshes = static_cast<int>(pending_parts_.size() - take);
   }
   st.refresh_fraction = st.impostors > 0 ? static_cast<float>(st.snapshots) / static_cast<float>(st.impostors) : 0.0f;
   if (st.part_cards > 0) st.refresh_fraction = static_cast<float>(st.part_snapshots) / static_cast<float>(st.part_cards);
@@ -442,20 +468,24 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
     }
   }
   if (window_change && !all) ++st.window_refreshes;
-  // Cache tests. Posture (section 5.1): per character, all its parts. View (section 5.2), per
-  // part: a card reproduces any rotation of its part about the line of sight (a roll of the
-  // picture) and any translation; what it cannot show is the part turning out of the card's
-  // plane, so the test is the angle between the card's normal, carried by the bone, and the
-  // current line of sight to the part.
+  // Cards that must be refreshed now (new character, new window) whatever the budget.
+  std::array<bool, kMaxBodyParts> must = due;
+  std::array<float, kMaxBodyParts> staleness{};
+  // Cache tests. Posture (section 5.1): each card against the character's posture when it was
+  // taken (the cards of a character are taken together unless a refresh budget spreads them).
+  // View (section 5.2), per card: a card reproduces any rotation of its part about the line of
+  // sight (a roll of the picture) and any translation; what it cannot show is the part turning
+  // out of the card's plane, so the test is the angle between the card's normal, carried by the
+  // bone, and the current line of sight to the part.
   const CacheConfig& cc = config_.cache;
   std::array<float, 4> posture;
   for (int k = 0; k < 4; ++k) posture[k] = bc.posture[f0][k] + (bc.posture[f1][k] - bc.posture[f0][k]) * blend;
   const float w = distance_weight(cc, glm::distance(ta, camera.eye));
   // A limb card turns about the limb's axis to face the eye (the cylinder's picture does not
-  // change); the view test below then sees only the change of the angle between that axis and
-  // the line of sight.
+  // change); the view test then sees only the change of the angle between that axis and the line
+  // of sight.
   for (int p = 0; p < count; ++p) {
-    if (!turns[p] || due[p]) continue;
+    if (!turns[p] || must[p]) continue;
     const glm::vec3 n = glm::normalize(glm::mat3(bone[p]) * pcs[p].normal);
     const glm::vec3 los = glm::normalize(centre[p] - camera.eye);
     const glm::vec3 a = glm::normalize(glm::mat3(bone[p]) * parts[p].axis);
@@ -463,41 +493,51 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
     if (glm::dot(nq, nq) > 1e-6f && glm::dot(lq, lq) > 1e-6f)
       turn[p] = glm::mat3(glm::rotate(glm::mat4(1.0f), std::atan2(glm::dot(a, glm::cross(nq, lq)), glm::dot(nq, lq)), a));
   }
-  if (!all) {
-    if (cc.posture_test && posture_changed(cs.posture, posture, cc.posture_threshold * w)) {
-      due.fill(true);
-      for (auto& t : turn) t = glm::mat3(1.0f);
-      ++st.posture_refreshes;
-    } else if (cc.view_test) {
-      const float cthr = std::cos(std::min(glm::radians(cc.view_threshold_deg) * w, 3.14159265f));
-      bool any = false;
-      for (int p = 0; p < count; ++p) {
-        if (due[p]) continue;
-        const glm::vec3 n = turn[p] * glm::normalize(glm::mat3(bone[p]) * pcs[p].normal);
-        const glm::vec3 los = glm::normalize(centre[p] - camera.eye);
-        due[p] = glm::dot(n, los) < cthr;
-        if (due[p]) turn[p] = glm::mat3(1.0f);
-        any |= due[p];
+  bool by_posture = false, by_view = false;
+  const float vthr = std::min(glm::radians(cc.view_threshold_deg) * w, 3.14159265f);
+  const float cthr = std::cos(vthr);
+  for (int p = 0; p < count; ++p) {
+    if (must[p]) continue;
+    if (cc.posture_test && posture_changed(pcs[p].posture, posture, cc.posture_threshold * w)) {
+      due[p] = by_posture = true;
+      staleness[p] = posture_staleness(pcs[p].posture, posture, cc.posture_threshold * w);
+    }
+    if (cc.view_test) {
+      const glm::vec3 n = turn[p] * glm::normalize(glm::mat3(bone[p]) * pcs[p].normal);
+      const glm::vec3 los = glm::normalize(centre[p] - camera.eye);
+      const float c = glm::dot(n, los);
+      if (c < cthr) {
+        by_view |= !due[p];
+        due[p] = true;
+        staleness[p] = std::max(staleness[p], std::acos(std::clamp(c, -1.0f, 1.0f)) / std::max(vthr, 1e-6f));
       }
-      if (any) ++st.view_refreshes;
     }
   }
-  bool any_due = false;
-  for (int p = 0; p < count; ++p) any_due |= due[p];
-  if (any_due) {
-    cs.valid = true;
-    if (cc.posture_test && (all || due[0])) cs.posture = posture;
-    const int lods = static_cast<int>(m.lods.size());
-    const int slod = config_.snapshot_lod_from_screen
-                         ? std::min(lod_for(pixels, camera.height), lods - 1)
-                         : lod_for(static_cast<float>(config_.windows.size[pcs[0].window.size_class]), camera.height);
-    const PartIndices& pi = m.part_indices(slod);
-    const std::size_t prims = m.lods[slod].primitives.size();
-    for (int p = 0; p < count; ++p) {
-      if (!due[p]) continue;
-      const BodyPart& bp = parts[p];
-      PartCache& pc = pcs[p];
-      const AtlasWindow& win = pc.window;
+  if (by_posture) ++st.posture_refreshes;
+  if (by_view) ++st.view_refreshes;
+  cs.valid = true;
+  // New cards: into the cache now, or, with a refresh budget and stale cards, into pending_parts_
+  // (the old card is drawn meanwhile).
+  const bool budget = cc.refresh_budget > 0;
+  const int lods = static_cast<int>(m.lods.size());
+  const int slod = config_.snapshot_lod_from_screen
+                       ? std::min(lod_for(pixels, camera.height), lods - 1)
+                       : lod_for(static_cast<float>(config_.windows.size[pcs[0].window.size_class]), camera.height);
+  const PartIndices& pi = m.part_indices(slod);
+  const std::size_t prims = m.lods[slod].primitives.size();
+  bool refreshed = false;
+  for (int p = 0; p < count; ++p) {
+    const BodyPart& bp = parts[p];
+    PartCache& pc = pcs[p];
+    const AtlasWindow& win = pc.window;
+    auto card = [&](const PartCache& c, const glm::mat3& t) {
+      return BillboardGpu{glm::vec4(glm::vec3(bone[p] * glm::vec4(c.centre, 1.0f)), c.half_size),
+                          glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
+                          glm::vec4(static_cast<float>(win.page), 0.0f, 0.0f, 0.0f), c.rect,
+                          glm::vec4(t * glm::vec3(bone[p] * glm::vec4(c.axis_x, 0.0f)), 1.0f),
+                          glm::vec4(t * glm::vec3(bone[p] * glm::vec4(c.axis_y, 0.0f)), 1.0f)};
+    };
+    if (due[p]) {
       const float r = bp.radius * sc;
       SnapshotCamera cam = make_snapshot_camera(centre[p], camera.eye, camera.up, r,
                                                 config_.snapshot_distance > 0 ? config_.snapshot_distance * sc : 0.0f,
@@ -505,14 +545,16 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
       if (config_.texel_per_pixel && cam.perspective)
         cam.half_size = std::max(cam.half_size, static_cast<float>(win.size) * cam.distance / (2.0f * ppm1));
       // The card at snapshot time, in the bone's palette space.
+      PartCache next = pc;
       const glm::mat4 inv = glm::inverse(bone[p]);
-      pc.centre = glm::vec3(inv * glm::vec4(centre[p], 1.0f));
-      pc.axis_x = glm::vec3(inv * glm::vec4(cam.ho * cam.half_size, 0.0f));
-      pc.axis_y = glm::vec3(inv * glm::vec4(cam.uo * cam.half_size, 0.0f));
-      pc.normal = glm::vec3(inv * glm::vec4(cam.vo, 0.0f));
-      pc.half_size = cam.half_size;
-      pc.rect = glm::vec4(-1, -1, 1, 1);
-      glm::vec4 snap_rect = pc.rect;
+      next.centre = glm::vec3(inv * glm::vec4(centre[p], 1.0f));
+      next.axis_x = glm::vec3(inv * glm::vec4(cam.ho * cam.half_size, 0.0f));
+      next.axis_y = glm::vec3(inv * glm::vec4(cam.uo * cam.half_size, 0.0f));
+      next.normal = glm::vec3(inv * glm::vec4(cam.vo, 0.0f));
+      next.half_size = cam.half_size;
+      next.posture = posture;
+      next.rect = glm::vec4(-1, -1, 1, 1);
+      glm::vec4 snap_rect = next.rect;
       if (config_.tight_quads) {
         // The part's box (palette space, over all frames).
         const WindowRects rr = window_rects(cam, win.size, [&](int k) {
@@ -520,29 +562,35 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
                             (k & 4) ? bp.box_max.z : bp.box_min.z);
           return glm::vec3(bone[p] * glm::vec4(q, 1.0f)) - centre[p];
         });
-        pc.rect = rr.quad;
+        next.rect = rr.quad;
         snap_rect = rr.snapshot;
       }
       SnapshotGpu s = snapshot_gpu(inst, cam, centre[p], r, win, page, snap_rect);
       s.part = glm::vec4(static_cast<float>(p), 0.0f, 0.0f, 0.0f);
-      plan_.snapshots[slod].push_back(s);
-      ++st.part_snapshots;
-      for (std::size_t k = 0; k < prims; ++k) st.snapshot_triangles += pi.ranges[k * parts_ + p].count / 3;
+      std::size_t tris = 0;
+      for (std::size_t k = 0; k < prims; ++k) tris += pi.ranges[k * parts_ + p].count / 3;
+      if (budget && !must[p]) {
+        pending_parts_.push_back(PendingPart{staleness[p], static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(p),
+                                             static_cast<std::uint32_t>(plan_.billboards.size()), slod, next, s,
+                                             card(next, glm::mat3(1.0f)), tris});
+      } else {
+        pc = next;
+        turn[p] = glm::mat3(1.0f);
+        plan_.snapshots[slod].push_back(s);
+        ++st.part_snapshots;
+        st.snapshot_triangles += tris;
+        --budget_left_;
+        refreshed = true;
+      }
     }
-    ++st.snapshots;
-  }
-  for (int p = 0; p < count; ++p) {
-    const PartCache& pc = pcs[p];
-    const AtlasWindow& win = pc.window;
-    plan_.billboards.push_back(BillboardGpu{
-        glm::vec4(glm::vec3(bone[p] * glm::vec4(pc.centre, 1.0f)), pc.half_size),
-        glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
-        glm::vec4(static_cast<float>(win.page), 0.0f, 0.0f, 0.0f), pc.rect,
-        glm::vec4(turn[p] * glm::vec3(bone[p] * glm::vec4(pc.axis_x, 0.0f)), 1.0f),
-        glm::vec4(turn[p] * glm::vec3(bone[p] * glm::vec4(pc.axis_y, 0.0f)), 1.0f)});
+    plan_.billboards.push_back(card(pc, turn[p]));
     ++st.impostors_per_window[win.size_class];
     ++st.part_cards;
     st.quad_texels += rect_texels(pc.rect, win.size);
+  }
+  if (refreshed) {
+    ++st.snapshots;
+    refreshed_[i] = 1;
   }
   ++st.impostors;
   return true;

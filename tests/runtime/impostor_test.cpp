@@ -632,6 +632,59 @@ TEST(BodyParts, WholeImpostorQuadHoldsTheSkinInsideThePoseBox) {
   }
 }
 
+// With part cards the budget counts cards: the stalest stale cards are refreshed, the others are
+// drawn from their old snapshots meanwhile.
+TEST(BodyParts, RefreshBudgetCountsCards) {
+  Model m = pole_model();
+  Crowd crowd(m);
+  for (int i = 0; i < 3; ++i) crowd.add(Character{glm::vec3(3.0f * i - 3.0f, 0, 0), 0.0f, 1.0f, 0, 0.0f, 0.0f});
+  ImpostorConfig cfg;
+  cfg.part_cards = true;
+  cfg.cache.posture_test = false;
+  cfg.cache.view_threshold_deg = 8.0f;
+  cfg.cache.refresh_budget = 1;
+  FramePlanner planner(m, cfg);
+  SceneCamera cam;
+  cam.eye = {0, 1.5f, 30};
+  cam.target = {0, 1.5f, 0};
+  auto s0 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(s0.part_snapshots, 6);  // new: every card, whatever the budget
+  // Turning 20, 30, 40 degrees about +Y tilts each root card past 8 degrees (the round arm
+  // turns to face the eye instead): three stale characters, the stalest refreshed.
+  for (int i = 0; i < 3; ++i) crowd[i].yaw = glm::radians(20.0f + 10.0f * i);
+  const FramePlan& a = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+  EXPECT_EQ(a.stats.snapshots, 1);
+  EXPECT_EQ(a.stats.part_snapshots, 1);
+  EXPECT_EQ(a.stats.deferred_refreshes, 2);
+  ASSERT_EQ(a.billboards.size(), 6u);
+  auto facing = [&](const BillboardGpu& b) {
+    const glm::vec3 los = glm::normalize(glm::vec3(b.ta_half) - cam.eye);
+    return std::abs(glm::dot(glm::normalize(glm::vec3(b.axis_x)), los));
+  };
+  EXPECT_LT(facing(a.billboards[4]), 1e-4f);  // character 2's root card: new, facing the eye
+  EXPECT_GT(facing(a.billboards[0]), 0.3f);   // character 0's: its old card, turned 20 degrees
+  EXPECT_GT(facing(a.billboards[2]), 0.4f);
+  const FrameStats b = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(b.snapshots, 1);
+  EXPECT_EQ(b.deferred_refreshes, 1);
+  const FrameStats c = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(c.snapshots, 1);
+  EXPECT_EQ(c.deferred_refreshes, 0);
+  EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.snapshots, 0);
+  // The posture test at a 0 threshold with the arms moving: all six cards stale, one refreshed;
+  // each card keeps the posture it was taken at, so the refreshed one is fresh in the next frame.
+  planner.config().cache.view_test = false;
+  planner.config().cache.posture_test = true;
+  planner.config().cache.posture_threshold = 0.0f;
+  for (std::size_t i = 0; i < crowd.size(); ++i) crowd[i].speed = 1.0f;
+  const FrameStats d = planner.plan(crowd, cam, 0.25f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(d.part_snapshots, 1);
+  EXPECT_EQ(d.deferred_refreshes, 5);
+  EXPECT_EQ(d.posture_refreshes, 3);
+  planner.config().cache.refresh_budget = 0;
+  EXPECT_EQ(planner.plan(crowd, cam, 0.25f, RenderMode::kImpostor).stats.part_snapshots, 5);
+}
+
 TEST(BodyParts, CesiumManHasLimbParts) {
   std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data absent: " << path;

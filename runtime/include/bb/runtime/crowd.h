@@ -200,6 +200,7 @@ class FramePlanner {
   struct PartCache {
     glm::vec3 centre{0.0f}, axis_x{0.0f}, axis_y{0.0f};  // centre, half axes (palette space)
     glm::vec3 normal{0.0f, 0.0f, 1.0f};  // Vo of the snapshot (palette space)
+    std::array<float, 4> posture{};      // the character's posture distances when it was taken
     float half_size = 0.0f;
     glm::vec4 rect{-1, -1, 1, 1};
     AtlasWindow window;
@@ -214,9 +215,22 @@ class FramePlanner {
     BillboardGpu card;
     std::size_t triangles = 0;
   };
+  // The same for one part card.
+  struct PendingPart {
+    float staleness = 0.0f;
+    std::uint32_t character = 0, part = 0, billboard = 0;
+    int lod = 0;
+    PartCache next;
+    SnapshotGpu snapshot;
+    BillboardGpu card;
+    std::size_t triangles = 0;
+  };
   const Model* model_;
   ImpostorConfig config_;
   std::vector<PendingRefresh> pending_;
+  std::vector<PendingPart> pending_parts_;
+  std::vector<std::uint8_t> refreshed_;  // part cards: characters with a card refreshed this frame
+  int budget_left_ = 0;  // CacheConfig::refresh_budget left in the frame being planned
   AtlasAllocator atlas_;
   std::vector<CacheState> cache_;
   std::vector<PartCache> part_cache_;  // [character * parts + part] when part cards are on

@@ -85,8 +85,9 @@ struct CacheConfig {
   // the budget left goes to the stale ones, most stale first (staleness: the larger of the view
   // angle and the largest posture change, each over its threshold, so > 1), and the others keep
   // their snapshot one more frame (FrameStats::deferred_refreshes). A deferred impostor only grows
-  // staler, so none waits for ever unless the budget is below the steady demand. Part cards
-  // ignore it (not yet).
+  // staler, so none waits for ever unless the budget is below the steady demand. With part cards
+  // the unit is a card (each card keeps the posture it was taken at, and its staleness is its tilt
+  // over the view threshold or its posture change over the posture threshold).
   int refresh_budget = 0;
 };
 
