@@ -2,7 +2,10 @@
 //
 // decimate_extremities: the contour-sampled body keeps its rings; the OpenVDB extremities zipped
 // to it are decimated (decimate.h) to a triangle budget, with every body and seam vertex locked,
-// so the seams stay exactly where they were and no crack opens.
+// so the seams stay exactly where they were and no crack opens. With several candidates per part
+// (rule settings, and where to start: the given mesh or a restart mesh), each result is measured
+// against the full-resolution part and the nearest kept: a real optimisation by measured error
+// (meshoptimizer is never used here; it is bench_decimate's yardstick only).
 //
 // bake_proxies: at the lowest level the extremities are simple geometry (the mesher's coarse,
 // contour-sampled caps); their look comes from a texture baked from the full-resolution meshes:
@@ -31,6 +34,44 @@ namespace bb::decimate {
 Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh, size_t extremity_triangles,
                                                  Report* report = nullptr, unsigned threads = 0);
 
+// One way to decimate a part: from which mesh and with which rules (decimate.h's Options).
+struct Candidate {
+  bool restart = false;               // from ExtremityOptions::restart's part instead of the mesh's own
+  double member_k = 1;                // Options::member_k
+  float max_weight_difference = 0.6f; // Options::max_weight_difference
+};
+
+// Best of several candidates per part: each part is decimated to its share of the budget (shares
+// from `mesh`'s parts) once per candidate, each result's symmetric Hausdorff distance to the
+// reference's part (or the mesh's own, without a reference) is measured (ReferenceDistance) and
+// the nearest is kept (the first on ties). `reference` and `restart`: meshes with the same head,
+// hands and feet (same part tags, seam loops at the same positions), e.g. LOD 0 before decimation
+// and a lightly decimated copy of it, so that a part decimated from them still meets `mesh`'s
+// zippers. Locked vertices, the normal rules and skin-weight influences are decimate()'s; only the
+// rules' settings vary.
+struct ExtremityOptions {
+  size_t budget = 0;                               // extremity triangles in all
+  const mesher::SkinnedMesh* reference = nullptr;  // measured against; null: `mesh` itself
+  const mesher::SkinnedMesh* restart = nullptr;    // restart candidates start here; null: the reference
+  std::vector<Candidate> candidates{Candidate{}};  // at least one
+  unsigned threads = 0;                            // parts in parallel; 0: one per core
+  double snapshot_factor = 0;  // > 1, with a `snapshot` mesh given: the first candidate's passes copy
+                               // each part out at this many times its target (Options::snapshot_triangles)
+  bool snapshot_restarts = false;  // restart candidates after the first start from its snapshot
+};
+struct ExtremityReport {
+  Report report;                  // as decimate_extremities' report (whole mesh against `mesh`)
+  std::vector<uint8_t> parts;     // per part decimated: its tag,
+  std::vector<size_t> chosen;     // the candidate kept (index into ExtremityOptions::candidates),
+  std::vector<double> hausdorff_m, mean_m;  // and its distance to the reference's part
+};
+// `snapshot`: `mesh` with those copies as its extremities (a restart mesh for coarser levels).
+// Each part's locked vertices: those shared with any other triangle, on the part's border, or
+// tagged seam.
+Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh, const ExtremityOptions& options,
+                                                 ExtremityReport* report = nullptr,
+                                                 mesher::SkinnedMesh* snapshot = nullptr);
+
 // `level`'s body and zipper triangles with the extremity triangles of `from` (the same head, hands
 // and feet, e.g. decimated with their seam loops locked, so they meet `level`'s zippers exactly);
 // vertices are welded by exact position, attributes from the mesh that brings the position first.
@@ -55,5 +96,14 @@ struct Proxies {
 // (same part tags) are at full resolution, in the same posture.
 Result<Proxies> bake_proxies(const mesher::SkinnedMesh& coarse, const mesher::SkinnedMesh& detailed,
                              const ProxyOptions& options = {});
+
+// The candidates `bodybuilder build` runs at `level` of `levels` (the last one, contour-sampled
+// proxies, is not decimated). Level 0, from full resolution: one run (member rule K = 1, skin
+// weights 0.6), which stops once at 3 times its target to copy the parts out (the restart mesh of
+// the coarser levels). Coarser levels: from the previous level as before, and from the restart
+// mesh with the skin-weight rule loosened to 1.0 (a hand there is a few dozen pixels tall); the
+// coarsest decimated level also from the previous level with the loosened rule.
+// Budget, reference, restart and threads are left to the caller.
+ExtremityOptions extremity_level_options(int level, int levels);
 
 }  // namespace bb::decimate
