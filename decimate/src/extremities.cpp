@@ -95,6 +95,15 @@ std::vector<PartMesh> split_parts(const mesher::SkinnedMesh& mesh) {
 
 }  // namespace
 
+struct ReferenceCache {
+  const mesher::SkinnedMesh* reference = nullptr;
+  size_t vertices = 0, triangles = 0;  // of the reference it was built from
+  std::vector<PartMesh> parts;
+  std::vector<std::unique_ptr<ReferenceDistance>> distance;  // per part, built on first use
+};
+
+std::shared_ptr<ReferenceCache> new_reference_cache() { return std::make_shared<ReferenceCache>(); }
+
 Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh, size_t budget, Report* report,
                                                  unsigned threads) {
   ExtremityOptions o;
@@ -127,9 +136,23 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
   // One sub-mesh per part, decimated to its share of the budget once per candidate, parts in
   // parallel; the candidate nearest to the reference's part is kept.
   std::vector<PartMesh> own = split_parts(mesh);
-  std::vector<PartMesh> ref, again;
-  if (reference) ref = split_parts(*reference);
-  if (restart) again = restart == reference ? ref : split_parts(*restart);
+  // The reference's parts and their measurements: from the cache when it was built from this
+  // reference, else built here (and kept in the cache when there is one).
+  std::shared_ptr<ReferenceCache> cache = opt.cache ? opt.cache : new_reference_cache();
+  if (reference && (cache->reference != reference || cache->vertices != reference->positions.size() ||
+                    cache->triangles != reference->indices.size())) {
+    cache->reference = reference;
+    cache->vertices = reference->positions.size();
+    cache->triangles = reference->indices.size();
+    cache->parts = split_parts(*reference);
+    cache->distance.clear();
+  }
+  if (!reference) cache = new_reference_cache();  // measured against `mesh` itself, not kept
+  cache->distance.resize(8);
+  const std::vector<PartMesh>& ref = cache->parts;
+  std::vector<PartMesh> restart_parts;
+  if (restart && restart != reference) restart_parts = split_parts(*restart);
+  const std::vector<PartMesh>& again = restart == reference ? ref : restart_parts;
   const bool measure = opt.candidates.size() > 1 || report;
   struct Job {
     uint8_t part = 0;
@@ -152,8 +175,8 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
     const bool has_ref = reference && ref[j.part].sub.triangle_count() > 0;
     const bool has_restart = restart && again[j.part].sub.triangle_count() > 0;
     const PartMesh& against = has_ref ? ref[j.part] : mine;
-    std::unique_ptr<ReferenceDistance> rd;
-    if (measure) rd = std::make_unique<ReferenceDistance>(against.sub.positions, against.sub.indices);
+    std::unique_ptr<ReferenceDistance>& rd = cache->distance[j.part];  // one job per part
+    if (measure && !rd) rd = std::make_unique<ReferenceDistance>(against.sub.positions, against.sub.indices);
     double best = 1e30;
     PartMesh snap;
     for (size_t c = 0; c < opt.candidates.size(); ++c) {
@@ -180,7 +203,7 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
         j.result = r.error();
         return;
       }
-      if (!rd) {
+      if (!measure) {
         j.result = std::move(r);
         return;
       }
@@ -251,9 +274,10 @@ ExtremityOptions extremity_level_options(int level, int levels) {
   const Candidate strict{false, 1.0, 0.6f};
   if (level == 0) {
     // From full resolution: the strict run (which also copies each part out after its first pass
-    // at or below 4 times the target), then from that copy without and with a wider member rule.
-    o.candidates = {strict, Candidate{true, 0.0, 0.6f}, Candidate{true, 2.0, 0.6f}};
-    o.snapshot_factor = 4;
+    // at or below twice the target), then from that copy without, with a wider and with the same
+    // member rule (the copy's quadrics start afresh).
+    o.candidates = {strict, Candidate{true, 0.0, 0.6f}, Candidate{true, 2.0, 0.6f}, Candidate{true, 1.0, 0.6f}};
+    o.snapshot_factor = 2;
     o.snapshot_restarts = true;
   } else if (level + 2 < levels) {
     // Middle levels: from the previous level, or from level 0's copy with the skin-weight rule

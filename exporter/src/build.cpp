@@ -160,6 +160,7 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
   // restart candidates start there. Every candidate is measured against full_lod0's parts.
   mesher::SkinnedMesh restart_mesh;
   const mesher::SkinnedMesh* restart = &full_lod0;
+  auto reference_cache = decimate::new_reference_cache();  // full_lod0's parts, measured once
   for (int l = 0; l + 1 < k; ++l) {
     mesher::Lod& lod = (*lods)[l];
     if (l > 0) lod.mesh = decimate::with_extremities_of(lod.mesh, (*lods)[l - 1].mesh);
@@ -172,6 +173,7 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
     eo.threads = opt.threads;
     eo.reference = &full_lod0;
     eo.restart = restart;
+    eo.cache = reference_cache;
     auto dec = decimate::decimate_extremities(lod.mesh, eo, nullptr, l == 0 ? &restart_mesh : nullptr);
     if (l == 0) restart = &restart_mesh;
     if (!dec) return Error{"", "level " + std::to_string(l), "decimation failed: " + dec.error().message()};

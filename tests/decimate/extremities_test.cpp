@@ -165,6 +165,18 @@ TEST(Extremities, RestartCandidatesMeetTheZippersAndAreMeasuredAgainstTheReferen
     EXPECT_NEAR(rep.hausdorff_m[p], d.hausdorff_m, 1e-9) << int(rep.parts[p]);
   }
   for (const auto& w : l1->weights) EXPECT_NEAR(w.x + w.y + w.z + w.w, 1.0f, 1e-5f);
+  // A reference cache shared by calls (as `build` does for its levels) changes no result.
+  auto cache = decimate::new_reference_cache();
+  o0.reference = &full;
+  o0.cache = o1.cache = cache;
+  mesher::SkinnedMesh copy2;
+  auto c0 = decimate::decimate_extremities(full, o0, nullptr, &copy2);
+  ASSERT_TRUE(c0);
+  o1.restart = &copy2;
+  auto c1 = decimate::decimate_extremities(*c0, o1);
+  ASSERT_TRUE(c1);
+  EXPECT_EQ(c1->indices, l1->indices);
+  EXPECT_EQ(c1->positions, l1->positions);
 }
 
 TEST(Extremities, ProxiesAreTexturedFromTheDetail) {

@@ -16,6 +16,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -49,6 +50,11 @@ struct Candidate {
 // and a lightly decimated copy of it, so that a part decimated from them still meets `mesh`'s
 // zippers. Locked vertices, the normal rules and skin-weight influences are decimate()'s; only the
 // rules' settings vary.
+// The reference's parts and their measurements (ReferenceDistance), built on first use and kept
+// for later calls with the same reference (`build`'s levels): pass one cache to each call.
+struct ReferenceCache;
+std::shared_ptr<ReferenceCache> new_reference_cache();
+
 struct ExtremityOptions {
   size_t budget = 0;                               // extremity triangles in all
   const mesher::SkinnedMesh* reference = nullptr;  // measured against; null: `mesh` itself
@@ -58,6 +64,7 @@ struct ExtremityOptions {
   double snapshot_factor = 0;  // > 1, with a `snapshot` mesh given: the first candidate's passes copy
                                // each part out at this many times its target (Options::snapshot_triangles)
   bool snapshot_restarts = false;  // restart candidates after the first start from its snapshot
+  std::shared_ptr<ReferenceCache> cache;  // optional, see new_reference_cache
 };
 struct ExtremityReport {
   Report report;                  // as decimate_extremities' report (whole mesh against `mesh`)
