@@ -49,6 +49,8 @@ Distance mesh_distance(const std::vector<glm::vec3>& pa, const std::vector<uint3
   return out;
 }
 
+constexpr size_t kCluster = 16;  // samples per cluster of ReferenceDistance
+
 struct ReferenceDistance::Impl {
   std::vector<glm::vec3> pa;
   std::vector<uint32_t> ia;
@@ -56,6 +58,11 @@ struct ReferenceDistance::Impl {
   std::unique_ptr<TriangleGrid> grid;
   std::vector<uint32_t> hot;       // samples farthest in the last complete measurement
   std::vector<uint32_t> order;     // samples in Morton order (neighbours share nearest triangles)
+  struct Cluster {
+    glm::vec3 centre;
+    float radius;
+  };
+  std::vector<Cluster> clusters;   // kCluster consecutive samples of `order` each
 };
 
 ReferenceDistance::ReferenceDistance(const std::vector<glm::vec3>& positions, const std::vector<uint32_t>& indices)
@@ -90,6 +97,18 @@ ReferenceDistance::ReferenceDistance(const std::vector<glm::vec3>& positions, co
   std::sort(keys.begin(), keys.end());
   impl_->order.resize(sp.size());
   for (size_t i = 0; i < sp.size(); ++i) impl_->order[i] = keys[i].second;
+  for (size_t k = 0; k < sp.size(); k += kCluster) {
+    const size_t end = std::min(sp.size(), k + kCluster);
+    glm::vec3 lo_c(1e30f), hi_c(-1e30f);
+    for (size_t j = k; j < end; ++j) {
+      lo_c = glm::min(lo_c, sp[impl_->order[j]]);
+      hi_c = glm::max(hi_c, sp[impl_->order[j]]);
+    }
+    Impl::Cluster c{0.5f * (lo_c + hi_c), 0.0f};
+    for (size_t j = k; j < end; ++j) c.radius = std::max(c.radius, glm::distance(c.centre, sp[impl_->order[j]]));
+    c.radius = c.radius * 1.0001f + 1e-7f;  // rounding
+    impl_->clusters.push_back(c);
+  }
 }
 
 ReferenceDistance::~ReferenceDistance() { delete impl_; }
@@ -129,6 +148,19 @@ ReferenceDistance::Measured ReferenceDistance::measure(const std::vector<glm::ve
   double sum_ab = 0;
   last_t = UINT32_MAX;
   for (size_t k = 0; k < r.samples.size(); ++k) {
+    if (!with_mean && k % kCluster == 0 && last_t != UINT32_MAX) {
+      // A whole cluster of Morton-consecutive samples within the largest distance so far of the
+      // last nearest triangle cannot raise the maximum.
+      const Impl::Cluster& cl = r.clusters[k / kCluster];
+      float upper = glm::distance(cl.centre, closest_on_triangle(cl.centre, pb[ib[3 * last_t]], pb[ib[3 * last_t + 1]],
+                                                                 pb[ib[3 * last_t + 2]])) + cl.radius;
+      if (upper <= std::max(max_ab, max_ba)) {
+        const size_t end = std::min(r.samples.size(), k + kCluster);
+        for (size_t j = k; j < end; ++j) dist[r.order[j]] = upper;  // an upper bound (hot order only)
+        k = end - 1;
+        continue;
+      }
+    }
     // With the mean: mesh_distance's order (the same sum); without: Morton order.
     const size_t i = with_mean ? k : r.order[k];
     const glm::vec3& q = r.samples[i];
