@@ -16,11 +16,12 @@
 // with its position, normal, uv and skin weights. A collapse that would leave an absorbed input
 // vertex farther than sqrt(member_k x the pass's error goal) waits for a later pass.
 //
-// One run's Hausdorff error is a lottery at coarse counts (one fingertip or ear decides it, and a
-// one-triangle change of target moves it by 10-30 %), so callers that care (extremities.h) run a
-// few candidates with different rule settings and keep the one measured nearest to the full
-// resolution; ReferenceDistance makes those measurements cheap, and a snapshot (a lightly
-// decimated copy taken between passes) gives them a cheaper start than full resolution.
+// One run's Hausdorff error is a lottery at coarse counts (one fingertip or ear decides it; another
+// rule setting moves it by 10-30 %, a one-triangle change of target by several per cent), so
+// callers that care (extremities.h) run a few candidates with different rule settings and keep
+// the one measured nearest to the full resolution; ReferenceDistance makes those measurements
+// cheap, and a snapshot (a lightly decimated copy taken between passes) gives them a cheaper start
+// than full resolution.
 //
 // Units: metres. Lossy: the result carries the error it reached.
 #pragma once

@@ -105,12 +105,14 @@ Result<Proxies> bake_proxies(const mesher::SkinnedMesh& coarse, const mesher::Sk
                              const ProxyOptions& options = {});
 
 // The candidates `bodybuilder build` runs at `level` of `levels` (the last one, contour-sampled
-// proxies, is not decimated). Level 0, from full resolution: one run (member rule K = 1, skin
-// weights 0.6), which stops once at 3 times its target to copy the parts out (the restart mesh of
-// the coarser levels). Coarser levels: from the previous level as before, and from the restart
-// mesh with the skin-weight rule loosened to 1.0 (a hand there is a few dozen pixels tall); the
-// coarsest decimated level also from the previous level with the loosened rule.
-// Budget, reference, restart and threads are left to the caller.
+// proxies, is not decimated). Level 0, from full resolution: the strict run (member ratio 1, skin
+// weights 0.6), which copies the parts out after its first pass at or below twice its target (the
+// restart mesh of this level and of the coarser ones), then three restarts from that copy with
+// member ratio 0, 2 and 1. Middle levels: from the previous level (strict), or from level 0's copy
+// with the skin-weight threshold loosened to 1.0 (member ratio 1 and 0); the coarsest decimated
+// level: from the previous level (strict and loosened) or from level 0's copy (loosened). At
+// levels 1 and 2 a hand is tens of pixels tall; level 0 keeps the strict weight rule. Budget,
+// reference, restart, cache and threads are left to the caller.
 ExtremityOptions extremity_level_options(int level, int levels);
 
 }  // namespace bb::decimate
