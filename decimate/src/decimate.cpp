@@ -21,9 +21,39 @@ struct Traits : OpenMesh::DefaultTraits {
 };
 using Mesh = OpenMesh::TriMesh_ArrayKernelT<Traits>;
 
+// The mesh's live vertices and faces as a SkinnedMesh: each vertex the input vertex `source`
+// names, with all its attributes.
+mesher::SkinnedMesh to_skinned(const Mesh& mesh, OpenMesh::VPropHandleT<int> source, const mesher::SkinnedMesh& in) {
+  const size_t nv = in.positions.size();
+  const bool skinned = in.joints.size() == nv && in.weights.size() == nv;
+  mesher::SkinnedMesh out;
+  std::vector<uint32_t> remap(mesh.n_vertices());
+  for (auto v : mesh.vertices()) {
+    if (mesh.status(v).deleted()) continue;
+    int s = mesh.property(source, v);
+    remap[v.idx()] = static_cast<uint32_t>(out.positions.size());
+    out.positions.push_back(in.positions[s]);  // halfedge collapses never move survivors
+    if (in.normals.size() == nv) out.normals.push_back(in.normals[s]);
+    if (in.uvs.size() == nv) out.uvs.push_back(in.uvs[s]);
+    if (in.part.size() == nv) out.part.push_back(in.part[s]);
+    if (in.seam.size() == nv) out.seam.push_back(in.seam[s]);
+    if (skinned) {
+      out.joints.push_back(in.joints[s]);
+      out.weights.push_back(in.weights[s]);
+    }
+  }
+  for (auto f : mesh.faces()) {
+    if (mesh.status(f).deleted()) continue;
+    auto fv = mesh.cfv_iter(f);
+    for (int k = 0; k < 3; ++k, ++fv) out.indices.push_back(remap[fv->idx()]);
+  }
+  return out;
+}
+
 }  // namespace
 
-Result<mesher::SkinnedMesh> decimate(const mesher::SkinnedMesh& in, const Options& opt, Report* report) {
+Result<mesher::SkinnedMesh> decimate(const mesher::SkinnedMesh& in, const Options& opt, Report* report,
+                                     mesher::SkinnedMesh* snapshot) {
   const size_t nv = in.positions.size();
   if (in.indices.size() % 3 != 0) return Error{"", "indices", "index count is not a multiple of 3"};
   if (!opt.locked.empty() && opt.locked.size() != nv)
@@ -86,6 +116,7 @@ Result<mesher::SkinnedMesh> decimate(const mesher::SkinnedMesh& in, const Option
     dec.module(quadric).set_original_normals(original_normal);
     dec.module(quadric).set_max_original_deviation_deg(opt.max_original_normal_deviation_deg);
     dec.module(quadric).set_max_flip_deg(opt.max_normal_deviation_deg);
+    dec.module(quadric).set_member_k(opt.member_k);
     if (opt.max_error_m > 0) dec.module(quadric).set_max_error(opt.max_error_m);
     if (skinned && opt.max_weight_difference < 2.0f) {
       dec.add(weights);
@@ -93,7 +124,19 @@ Result<mesher::SkinnedMesh> decimate(const mesher::SkinnedMesh& in, const Option
       dec.module(weights).set_max_difference(opt.max_weight_difference);
     }
     if (!dec.initialize()) return Error{"", "", "OpenMesh decimater failed to initialize"};
-    dec.decimate_in_passes(opt.target_triangles, dec.module(quadric));
+    // The snapshot: the mesh after the first pass that leaves at most snapshot_triangles (the
+    // passes themselves are the same with or without it).
+    bool taken = false;
+    if (snapshot && in.indices.size() / 3 <= opt.snapshot_triangles) {
+      *snapshot = in;
+      taken = true;
+    }
+    dec.decimate_in_passes(opt.target_triangles, dec.module(quadric), [&](size_t faces) {
+      if (snapshot && !taken && faces <= opt.snapshot_triangles) {
+        *snapshot = to_skinned(mesh, source, in);
+        taken = true;
+      }
+    });
     {
       // Each survivor may take the place of one of the input vertices it absorbed (position and
       // every attribute), the one nearest to the planes it stands for.
@@ -111,25 +154,7 @@ Result<mesher::SkinnedMesh> decimate(const mesher::SkinnedMesh& in, const Option
   mesh.garbage_collection();
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-  mesher::SkinnedMesh out;
-  std::vector<uint32_t> remap(mesh.n_vertices());
-  for (auto v : mesh.vertices()) {
-    int s = mesh.property(source, v);
-    remap[v.idx()] = static_cast<uint32_t>(out.positions.size());
-    out.positions.push_back(in.positions[s]);  // halfedge collapses never move survivors
-    if (in.normals.size() == nv) out.normals.push_back(in.normals[s]);
-    if (in.uvs.size() == nv) out.uvs.push_back(in.uvs[s]);
-    if (in.part.size() == nv) out.part.push_back(in.part[s]);
-    if (in.seam.size() == nv) out.seam.push_back(in.seam[s]);
-    if (skinned) {
-      out.joints.push_back(in.joints[s]);
-      out.weights.push_back(in.weights[s]);
-    }
-  }
-  for (auto f : mesh.faces()) {
-    auto fv = mesh.fv_iter(f);
-    for (int k = 0; k < 3; ++k, ++fv) out.indices.push_back(remap[fv->idx()]);
-  }
+  mesher::SkinnedMesh out = to_skinned(mesh, source, in);
   if (report) {
     report->triangles_before = in.indices.size() / 3;
     report->triangles_after = out.indices.size() / 3;

@@ -38,59 +38,190 @@ mesher::SkinnedMesh with_extremities_of(const mesher::SkinnedMesh& level, const 
   return out;
 }
 
-Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh, size_t budget, Report* report,
-                                                 unsigned threads) {
+namespace {
+
+// A part's own locked vertices: on its border (shared with the rest of the body) or seams.
+std::vector<char> border_or_seam(const mesher::SkinnedMesh& m) {
+  std::vector<char> locked(m.positions.size(), 0);
+  std::unordered_map<uint64_t, int> edges;
+  for (size_t t = 0; t < m.indices.size(); t += 3)
+    for (int k = 0; k < 3; ++k) {
+      uint32_t a = m.indices[t + k], b = m.indices[t + (k + 1) % 3];
+      ++edges[(uint64_t(std::min(a, b)) << 32) | std::max(a, b)];
+    }
+  for (const auto& [e, n] : edges)
+    if (n == 1) locked[e >> 32] = locked[e & 0xffffffffu] = 1;
+  for (size_t i = 0; i < m.seam.size(); ++i)
+    if (m.seam[i]) locked[i] = 1;
+  return locked;
+}
+
+// Each extremity part of `mesh` as a sub-mesh (index: the part tag, 1..7), its vertices shared with
+// any other triangle (seams, zippers) or tagged seam locked.
+struct PartMesh {
+  mesher::SkinnedMesh sub;
+  std::vector<char> locked;
+};
+std::vector<PartMesh> split_parts(const mesher::SkinnedMesh& mesh) {
   const size_t nv = mesh.positions.size();
-  if (mesh.part.size() != nv || mesh.seam.size() != nv)
-    return Error{"", "", "the mesh has no part/seam tags: cannot tell extremities from the body"};
-  const size_t total = mesh.indices.size() / 3;
-  // Extremity triangles per part; vertices shared with any other triangle (seams, zippers).
   std::vector<std::vector<size_t>> tris(8);
   std::vector<char> shared(nv, 0);
-  size_t extremity = 0;
   for (size_t t = 0; t < mesh.indices.size(); t += 3) {
     uint8_t p = mesh.extremity_part(t);
-    if (p != 0 && p < 8) {
-      tris[p].push_back(t);
-      ++extremity;
-    } else {
+    if (p != 0 && p < 8) tris[p].push_back(t);
+    else
       for (int k = 0; k < 3; ++k) shared[mesh.indices[t + k]] = 1;
-    }
   }
-  if (extremity <= budget) {
-    if (report) *report = Report{total, total, nv, 0, 0, 0, 0};
-    return mesh;
-  }
-  // One sub-mesh per part, decimated to its share of the budget, parts in parallel. Vertices
-  // shared with the rest of the body and seam vertices are locked.
-  struct Job {
-    mesher::SkinnedMesh sub;
-    Options opt;
-    Result<mesher::SkinnedMesh> result = Error{"", "", "not run"};
-  };
-  std::vector<Job> jobs;
+  std::vector<PartMesh> parts(8);
+  std::vector<int> map(nv, -1);
   for (int p = 1; p < 8; ++p) {
-    if (tris[p].empty()) continue;
-    Job j;
-    std::vector<int> map(nv, -1);
+    PartMesh& pm = parts[p];
     auto add = [&](uint32_t i) {
       if (map[i] < 0) {
-        map[i] = static_cast<int>(j.sub.append_vertex(mesh, i));
-        j.opt.locked.push_back(shared[i] || mesh.seam[i] != 0);
+        map[i] = static_cast<int>(pm.sub.append_vertex(mesh, i));
+        pm.locked.push_back(shared[i] || mesh.seam[i] != 0);  // border vertices: below
       }
       return static_cast<uint32_t>(map[i]);
     };
     for (size_t t : tris[p])
-      for (int k = 0; k < 3; ++k) j.sub.indices.push_back(add(mesh.indices[t + k]));
-    size_t share = std::max<size_t>(1, budget * tris[p].size() / extremity);
-    j.opt.target_triangles = std::min(tris[p].size(), share);
-    jobs.push_back(std::move(j));
+      for (int k = 0; k < 3; ++k) pm.sub.indices.push_back(add(mesh.indices[t + k]));
+    for (size_t t : tris[p])
+      for (int k = 0; k < 3; ++k) map[mesh.indices[t + k]] = -1;
+    std::vector<char> own = border_or_seam(pm.sub);
+    for (size_t i = 0; i < own.size(); ++i) pm.locked[i] |= own[i];
   }
+  return parts;
+}
+
+}  // namespace
+
+struct ReferenceCache {
+  const mesher::SkinnedMesh* reference = nullptr;
+  size_t vertices = 0, triangles = 0;  // of the reference it was built from
+  std::vector<PartMesh> parts;
+  std::vector<std::unique_ptr<ReferenceDistance>> distance;  // per part, built on first use
+};
+
+std::shared_ptr<ReferenceCache> new_reference_cache() { return std::make_shared<ReferenceCache>(); }
+
+Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh, size_t budget, Report* report,
+                                                 unsigned threads) {
+  ExtremityOptions o;
+  o.budget = budget;
+  o.threads = threads;
+  ExtremityReport er;
+  auto r = decimate_extremities(mesh, o, report ? &er : nullptr);
+  if (r && report) *report = er.report;
+  return r;
+}
+
+Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh, const ExtremityOptions& opt,
+                                                 ExtremityReport* report, mesher::SkinnedMesh* snapshot) {
+  const size_t nv = mesh.positions.size();
+  if (mesh.part.size() != nv || mesh.seam.size() != nv)
+    return Error{"", "", "the mesh has no part/seam tags: cannot tell extremities from the body"};
+  if (opt.candidates.empty()) return Error{"", "candidates", "at least one candidate expected"};
+  const mesher::SkinnedMesh* reference = opt.reference;
+  const mesher::SkinnedMesh* restart = opt.restart ? opt.restart : opt.reference;
+  for (const mesher::SkinnedMesh* m : {reference, restart})
+    if (m && (m->part.size() != m->positions.size() || m->seam.size() != m->positions.size()))
+      return Error{"", "reference", "the reference or restart mesh has no part/seam tags"};
+  const size_t total = mesh.indices.size() / 3;
+  const size_t extremity = mesh.extremity_triangle_count();
+  if (extremity <= opt.budget) {
+    if (report) *report = ExtremityReport{Report{total, total, nv, 0, 0, 0, 0}, {}, {}, {}, {}};
+    if (snapshot) *snapshot = mesh;
+    return mesh;
+  }
+  // One sub-mesh per part, decimated to its share of the budget once per candidate, parts in
+  // parallel; the candidate nearest to the reference's part is kept.
+  std::vector<PartMesh> own = split_parts(mesh);
+  // The reference's parts and their measurements: from the cache when it was built from this
+  // reference, else built here (and kept in the cache when there is one).
+  std::shared_ptr<ReferenceCache> cache = opt.cache ? opt.cache : new_reference_cache();
+  if (reference && (cache->reference != reference || cache->vertices != reference->positions.size() ||
+                    cache->triangles != reference->indices.size())) {
+    cache->reference = reference;
+    cache->vertices = reference->positions.size();
+    cache->triangles = reference->indices.size();
+    cache->parts = split_parts(*reference);
+    cache->distance.clear();
+  }
+  if (!reference) cache = new_reference_cache();  // measured against `mesh` itself, not kept
+  cache->distance.resize(8);
+  const std::vector<PartMesh>& ref = cache->parts;
+  std::vector<PartMesh> restart_parts;
+  if (restart && restart != reference) restart_parts = split_parts(*restart);
+  const std::vector<PartMesh>& again = restart == reference ? ref : restart_parts;
+  const bool measure = opt.candidates.size() > 1 || report;
+  struct Job {
+    uint8_t part = 0;
+    size_t target = 0;
+    Result<mesher::SkinnedMesh> result = Error{"", "", "not run"};
+    size_t chosen = 0;
+    Distance distance;
+    mesher::SkinnedMesh snapshot;
+  };
+  std::vector<Job> jobs;
+  for (int p = 1; p < 8; ++p) {
+    size_t n = own[p].sub.triangle_count();
+    if (n == 0) continue;
+    Job& j = jobs.emplace_back();
+    j.part = static_cast<uint8_t>(p);
+    j.target = std::min(n, std::max<size_t>(1, opt.budget * n / extremity));
+  }
+  auto run = [&](Job& j) {
+    const PartMesh& mine = own[j.part];
+    const bool has_ref = reference && ref[j.part].sub.triangle_count() > 0;
+    const bool has_restart = restart && again[j.part].sub.triangle_count() > 0;
+    const PartMesh& against = has_ref ? ref[j.part] : mine;
+    std::unique_ptr<ReferenceDistance>& rd = cache->distance[j.part];  // one job per part
+    if (measure && !rd) rd = std::make_unique<ReferenceDistance>(against.sub.positions, against.sub.indices);
+    double best = 1e30;
+    PartMesh snap;
+    for (size_t c = 0; c < opt.candidates.size(); ++c) {
+      const Candidate& cand = opt.candidates[c];
+      // Restart candidates start from this call's snapshot when the first candidate took one.
+      const PartMesh& in = cand.restart && snap.sub.triangle_count() > 0 ? snap
+                           : cand.restart && has_restart              ? again[j.part]
+                                                                      : mine;
+      Options o;
+      o.target_triangles = j.target;
+      o.locked = in.locked;
+      o.member_k = cand.member_k;
+      o.max_weight_difference = cand.max_weight_difference;
+      if (c == 0 && snapshot && opt.snapshot_factor > 1) {
+        o.snapshot_triangles = static_cast<size_t>(opt.snapshot_factor * static_cast<double>(j.target));
+        j.snapshot = in.sub;  // kept when the part has no more than that
+      }
+      auto r = decimate(in.sub, o, nullptr, c == 0 && snapshot ? &j.snapshot : nullptr);
+      if (c == 0 && snapshot && opt.snapshot_factor > 1 && opt.snapshot_restarts) {
+        snap.sub = j.snapshot;
+        snap.locked = border_or_seam(snap.sub);
+      }
+      if (!r) {
+        j.result = r.error();
+        return;
+      }
+      if (!measure) {
+        j.result = std::move(r);
+        return;
+      }
+      auto m = rd->measure(r->positions, r->indices, best, report != nullptr);
+      if (m.complete && (c == 0 || m.distance.hausdorff_m < best)) {
+        best = m.distance.hausdorff_m;
+        j.result = std::move(r);
+        j.chosen = c;
+        j.distance = m.distance;
+      }
+    }
+  };
+  unsigned threads = opt.threads;
   if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
   {
     std::atomic<size_t> next{0};
     auto worker = [&] {
-      for (size_t i; (i = next++) < jobs.size();) jobs[i].result = decimate(jobs[i].sub, jobs[i].opt, nullptr);
+      for (size_t i; (i = next++) < jobs.size();) run(jobs[i]);
     };
     std::vector<std::thread> pool;
     for (unsigned c = 1; c < std::min<size_t>(threads, jobs.size()); ++c) pool.emplace_back(worker);
@@ -108,18 +239,55 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
     for (uint32_t i : r.indices) parts.indices.push_back(base + i);
   }
   mesher::SkinnedMesh out = with_extremities_of(mesh, parts);
+  if (snapshot && !(opt.snapshot_factor > 1)) *snapshot = out;
+  if (snapshot && opt.snapshot_factor > 1) {
+    mesher::SkinnedMesh copies;
+    for (const Job& j : jobs) {
+      const uint32_t base = static_cast<uint32_t>(copies.positions.size());
+      for (uint32_t i = 0; i < j.snapshot.positions.size(); ++i) copies.append_vertex(j.snapshot, i);
+      for (uint32_t i : j.snapshot.indices) copies.indices.push_back(base + i);
+    }
+    *snapshot = with_extremities_of(mesh, copies);
+  }
   if (report) {
-    report->triangles_before = total;
-    report->triangles_after = out.indices.size() / 3;
-    report->vertices_after = out.positions.size();
-    report->locked_vertices = 0;
-    for (const Job& j : jobs)
-      for (char l : j.opt.locked) report->locked_vertices += l != 0;
+    Report& rep = report->report;
+    rep = Report{};
+    rep.triangles_before = total;
+    rep.triangles_after = out.indices.size() / 3;
+    rep.vertices_after = out.positions.size();
+    for (const Job& j : jobs) {
+      for (char l : own[j.part].locked) rep.locked_vertices += l != 0;
+      report->parts.push_back(j.part);
+      report->chosen.push_back(j.chosen);
+      report->hausdorff_m.push_back(j.distance.hausdorff_m);
+      report->mean_m.push_back(j.distance.mean_m);
+    }
     Distance d = mesh_distance(mesh.positions, mesh.indices, out.positions, out.indices);
-    report->hausdorff_m = d.hausdorff_m;
-    report->mean_m = d.mean_m;
+    rep.hausdorff_m = d.hausdorff_m;
+    rep.mean_m = d.mean_m;
   }
   return out;
+}
+
+ExtremityOptions extremity_level_options(int level, int levels) {
+  ExtremityOptions o;
+  const Candidate strict{false, 1.0, 0.6f};
+  if (level == 0) {
+    // From full resolution: the strict run (which also copies each part out after its first pass
+    // at or below twice the target), then from that copy without, with a wider and with the same
+    // member rule (the copy's quadrics start afresh).
+    o.candidates = {strict, Candidate{true, 0.0, 0.6f}, Candidate{true, 2.0, 0.6f}, Candidate{true, 1.0, 0.6f}};
+    o.snapshot_factor = 2;
+    o.snapshot_restarts = true;
+  } else if (level + 2 < levels) {
+    // Middle levels: from the previous level, or from level 0's copy with the skin-weight rule
+    // loosened to 1.0.
+    o.candidates = {strict, Candidate{true, 1.0, 1.0f}, Candidate{true, 0.0, 1.0f}};
+  } else {
+    // The coarsest decimated level: also from the previous level with the loosened rule.
+    o.candidates = {strict, Candidate{false, 1.0, 1.0f}, Candidate{true, 1.0, 1.0f}};
+  }
+  return o;
 }
 
 Result<Proxies> bake_proxies(const mesher::SkinnedMesh& coarse, const mesher::SkinnedMesh& detailed,

@@ -14,7 +14,10 @@
 // A collapse that would leave an input vertex absorbed by the removed vertex, or by one of its
 // other neighbours, farther from the new faces than the pass's error goal is deferred to a later
 // pass (the quadric alone let thin tips slide back: bench_decimate 8 -> 11 of 12 rows no worse
-// than meshoptimizer on Hausdorff, at 1.8x the time).
+// than meshoptimizer on Hausdorff, at 1.8x the time). The ratio (set_member_k, decimate.h's
+// Options::member_k) is 1 by default; extremities.h also tries 0 and 2 and keeps whichever
+// result measures nearest. decimate_in_passes may call back after each pass (decimate.h's
+// snapshot), which changes nothing in the passes.
 //
 // ModSkinWeightsT forbids collapsing two vertices whose skin weights differ by more than a
 // threshold (L1 distance of the influence distributions). Human-specific: it keeps the vertex
@@ -376,9 +379,15 @@ class FastDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
 
   explicit FastDecimaterT(MeshT& mesh) : Base(mesh) {}
 
-  // Collapses in passes until at most `target_faces` faces are left (0: while a legal collapse
-  // is left), ranking with `quadric`'s error alone. Returns the number of collapses.
   size_t decimate_in_passes(size_t target_faces, ModQuadricNormalizedT<MeshT>& quadric) {
+    return decimate_in_passes(target_faces, quadric, [](size_t) {});
+  }
+
+  // Collapses in passes until at most `target_faces` faces are left (0: while a legal collapse
+  // is left), ranking with `quadric`'s error alone. `after_pass(faces)` is called after each pass
+  // (the passes do not depend on it). Returns the number of collapses.
+  template <typename AfterPass>
+  size_t decimate_in_passes(size_t target_faces, ModQuadricNormalizedT<MeshT>& quadric, AfterPass&& after_pass) {
     MeshT& m = Base::mesh();
     const size_t nv = m.n_vertices();
     tag_.assign(nv, 0);
@@ -445,6 +454,7 @@ class FastDecimaterT : public OpenMesh::Decimater::BaseDecimaterT<MeshT> {
         ++pass_collapses;
       }
       collapses += pass_collapses;
+      after_pass(nf);
       if (pass_collapses == 0) {
         if (deferred == 0) break;
         member_k = 0;  // only deferred collapses are left: drop the rule

@@ -31,12 +31,12 @@ inline glm::vec3 closest_on_triangle(const glm::vec3& p, const glm::vec3& a, con
   return a + ab * (vb * denom) + ac * (vc * denom);
 }
 
-// The triangles `idx` (of vertices `p`) in a uniform grid over their own bounds, cells about
-// twice the mean edge length, stored flat (offsets + triangle lists). Queries search growing
+// The triangles `idx` (of vertices `p`) in a uniform grid over their own bounds, cells
+// `cell_edges` times the mean edge length, stored flat (offsets + triangle lists). Queries search growing
 // shells of cells and stop once no unseen triangle can be nearer than the best found.
 class TriangleGrid {
  public:
-  TriangleGrid(const std::vector<glm::vec3>& p, const std::vector<uint32_t>& idx) : p_(p), idx_(idx) {
+  TriangleGrid(const std::vector<glm::vec3>& p, const std::vector<uint32_t>& idx, float cell_edges = 2.0f) : p_(p), idx_(idx) {
     const size_t tris = idx.size() / 3;
     double edge_sum = 0;
     for (size_t t = 0; t < tris; ++t) {
@@ -47,7 +47,7 @@ class TriangleGrid {
     }
     if (tris == 0) lo_ = hi_ = glm::vec3(0);
     glm::vec3 size = glm::max(hi_ - lo_, glm::vec3(1e-6f));
-    cell_ = std::max(1e-5f, static_cast<float>(2.0 * edge_sum / std::max<size_t>(1, 3 * tris)));
+    cell_ = std::max(1e-5f, static_cast<float>(cell_edges * edge_sum / std::max<size_t>(1, 3 * tris)));
     // At most ~4 M cells: grow the cell until the grid fits.
     for (;;) {
       dims_ = glm::max(glm::ivec3(glm::ceil(size / cell_)), glm::ivec3(1));
@@ -68,6 +68,11 @@ class TriangleGrid {
     items_.resize(start_[ncells]);
     std::vector<uint32_t> fill(start_.begin(), start_.end() - 1);
     for (size_t t = 0; t < tris; ++t) each_cell(t, [&](size_t i) { items_[fill[i]++] = static_cast<uint32_t>(t); });
+    box_.resize(tris);
+    for (size_t t = 0; t < tris; ++t) {
+      const glm::vec3 &a = p[idx[3 * t]], &b = p[idx[3 * t + 1]], &c = p[idx[3 * t + 2]];
+      box_[t] = {glm::min(a, glm::min(b, c)), glm::max(a, glm::max(b, c))};
+    }
   }
 
   float distance(const glm::vec3& q) const {
@@ -78,10 +83,24 @@ class TriangleGrid {
   // Distance from q to the nearest triangle; its closest point and triangle index. `upper`, when
   // given, must be at least that distance (e.g. the previous query's distance plus how far the
   // query moved): triangles whose box lies farther are skipped and the search stops sooner.
-  float closest(const glm::vec3& q, glm::vec3* point, uint32_t* triangle, float upper = 1e15f) const {
+  // `hint`, when given, is a triangle tried first (e.g. the previous query's nearest): its
+  // distance bounds the search the same way. Cells and triangles whose box lies farther than the
+  // best so far are skipped.
+  float closest(const glm::vec3& q, glm::vec3* point, uint32_t* triangle, float upper = 1e15f,
+                uint32_t hint = UINT32_MAX) const {
     float best2 = upper < 1e15f ? upper * upper * 1.0001f + 1e-12f : 1e30f;
     if (items_.empty()) return std::sqrt(best2);
     bool found = false;
+    if (hint < idx_.size() / 3) {  // a triangle likely to be the nearest: its distance bounds the search
+      glm::vec3 cp = closest_on_triangle(q, p_[idx_[3 * hint]], p_[idx_[3 * hint + 1]], p_[idx_[3 * hint + 2]]);
+      float d2 = glm::dot(cp - q, cp - q);
+      if (d2 < best2) {
+        best2 = d2;
+        *point = cp;
+        if (triangle) *triangle = hint;
+        found = true;
+      }
+    }
     glm::ivec3 c = cell_of(q);
     int max_ring = std::max(dims_.x, std::max(dims_.y, dims_.z));
     for (int r = 0; r <= max_ring; ++r) {
@@ -105,14 +124,15 @@ class TriangleGrid {
               x = c.x + r - 1;  // jump to the shell's far face
               continue;
             }
+            if (r > 0) {  // a cell farther than the best so far cannot hold a nearer triangle
+              glm::vec3 cl = lo_ + glm::vec3(x, y, z) * cell_;
+              glm::vec3 out = glm::max(glm::max(cl - q, q - (cl + cell_)), glm::vec3(0.0f));
+              if (glm::dot(out, out) >= best2) continue;
+            }
             size_t cell = index(x, y, z);
             for (uint32_t i = start_[cell]; i < start_[cell + 1]; ++i) {
               uint32_t t = items_[i];
-              const glm::vec3& a = p_[idx_[3 * t]];
-              const glm::vec3& b = p_[idx_[3 * t + 1]];
-              const glm::vec3& c3 = p_[idx_[3 * t + 2]];
-              glm::vec3 out = glm::max(glm::max(glm::min(a, glm::min(b, c3)) - q, q - glm::max(a, glm::max(b, c3))),
-                                       glm::vec3(0.0f));
+              glm::vec3 out = glm::max(glm::max(box_[t].lo - q, q - box_[t].hi), glm::vec3(0.0f));
               if (glm::dot(out, out) >= best2) continue;  // its box is already too far
               glm::vec3 cp = closest_on_triangle(q, p_[idx_[3 * t]], p_[idx_[3 * t + 1]], p_[idx_[3 * t + 2]]);
               glm::vec3 d = cp - q;
@@ -127,7 +147,7 @@ class TriangleGrid {
           }
         }
     }
-    if (!found && upper < 1e15f) return closest(q, point, triangle);  // `upper` was too tight
+    if (!found && upper < 1e15f) return closest(q, point, triangle, 1e15f, hint);  // `upper` was too tight
     return std::sqrt(best2);
   }
 
@@ -144,6 +164,10 @@ class TriangleGrid {
   glm::ivec3 dims_{1};
   std::vector<uint32_t> start_;  // cell i holds items_[start_[i] .. start_[i + 1])
   std::vector<uint32_t> items_;
+  struct Box {
+    glm::vec3 lo, hi;
+  };
+  std::vector<Box> box_;  // per triangle
 };
 
 }  // namespace bb::decimate::detail

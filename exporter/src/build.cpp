@@ -156,6 +156,11 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
       proxy_seconds = since(tp);
       return r;
     });
+  // Level 0 also copies its parts out once lightly decimated (restart_mesh): coarser levels'
+  // restart candidates start there. Every candidate is measured against full_lod0's parts.
+  mesher::SkinnedMesh restart_mesh;
+  const mesher::SkinnedMesh* restart = &full_lod0;
+  auto reference_cache = decimate::new_reference_cache();  // full_lod0's parts, measured once
   for (int l = 0; l + 1 < k; ++l) {
     mesher::Lod& lod = (*lods)[l];
     if (l > 0) lod.mesh = decimate::with_extremities_of(lod.mesh, (*lods)[l - 1].mesh);
@@ -163,7 +168,14 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
     size_t body_tris = lod.mesh.triangle_count() - ext;
     size_t budget = l == 0 ? opt.lod0_extremity_triangles : std::max<size_t>(200, body_tris * 45 / 100);
     if (budget == 0 || ext <= budget) continue;
-    auto dec = decimate::decimate_extremities(lod.mesh, budget, nullptr, opt.threads);
+    decimate::ExtremityOptions eo = decimate::extremity_level_options(l, k);
+    eo.budget = budget;
+    eo.threads = opt.threads;
+    eo.reference = &full_lod0;
+    eo.restart = restart;
+    eo.cache = reference_cache;
+    auto dec = decimate::decimate_extremities(lod.mesh, eo, nullptr, l == 0 ? &restart_mesh : nullptr);
+    if (l == 0) restart = &restart_mesh;
     if (!dec) return Error{"", "level " + std::to_string(l), "decimation failed: " + dec.error().message()};
     lod.mesh = std::move(*dec);
   }

@@ -1,6 +1,7 @@
 #include <cmath>
 #include <map>
 #include <set>
+#include <tuple>
 
 #include <gtest/gtest.h>
 
@@ -208,6 +209,58 @@ TEST(Decimate, MeshDistanceIsExactOnTinyCases) {
   EXPECT_NEAR(d.mean_m, 0.25, 1e-6);
   Distance same = mesh_distance(a.positions, a.indices, a.positions, a.indices);
   EXPECT_LT(same.hausdorff_m, 1e-6);
+}
+
+TEST(Decimate, SnapshotIsTakenAfterThePassThatReachesItAndChangesNothing) {
+  SkinnedMesh t = tube(41, 24);
+  Options opt;
+  opt.target_triangles = t.triangle_count() / 10;
+  opt.snapshot_triangles = t.triangle_count() / 3;
+  SkinnedMesh snap;
+  auto with = decimate(t, opt, nullptr, &snap);
+  auto without = decimate(t, opt);
+  ASSERT_TRUE(with && without);
+  // The passes do not depend on the snapshot: the same result.
+  EXPECT_EQ(with->indices, without->indices);
+  EXPECT_EQ(with->positions, without->positions);
+  // A lightly decimated copy between the input and the result, made of input vertices, closed.
+  EXPECT_LE(snap.triangle_count(), opt.snapshot_triangles);
+  EXPECT_GT(snap.triangle_count(), with->triangle_count());
+  EXPECT_LT(snap.triangle_count(), t.triangle_count());
+  EXPECT_TRUE(closed_and_oriented(snap));
+  std::set<std::tuple<float, float, float>> input;
+  for (auto p : t.positions) input.insert({p.x, p.y, p.z});
+  for (auto p : snap.positions) EXPECT_TRUE(input.count({p.x, p.y, p.z}));
+  EXPECT_EQ(snap.weights.size(), snap.positions.size());
+}
+
+TEST(Decimate, ReferenceDistanceMatchesMeshDistanceAndGivesUpEarly) {
+  SkinnedMesh t = tube(41, 24);
+  Options a, b;
+  a.target_triangles = t.triangle_count() / 8;
+  b.target_triangles = t.triangle_count() / 30;
+  auto fine = decimate(t, a), coarse = decimate(t, b);
+  ASSERT_TRUE(fine && coarse);
+  Distance df = mesh_distance(t.positions, t.indices, fine->positions, fine->indices);
+  Distance dc = mesh_distance(t.positions, t.indices, coarse->positions, coarse->indices);
+  ASSERT_LT(df.hausdorff_m, dc.hausdorff_m);
+  ReferenceDistance ref(t.positions, t.indices);
+  // Complete measurements: with the mean, exactly mesh_distance; without, the same Hausdorff.
+  auto m1 = ref.measure(fine->positions, fine->indices);
+  ASSERT_TRUE(m1.complete);
+  EXPECT_DOUBLE_EQ(m1.distance.hausdorff_m, df.hausdorff_m);
+  EXPECT_DOUBLE_EQ(m1.distance.mean_m, df.mean_m);
+  auto m2 = ref.measure(coarse->positions, coarse->indices, 1e30, false);
+  ASSERT_TRUE(m2.complete);
+  EXPECT_DOUBLE_EQ(m2.distance.hausdorff_m, dc.hausdorff_m);
+  // A candidate worse than the bound is given up on, with a distance above the bound.
+  auto m3 = ref.measure(coarse->positions, coarse->indices, df.hausdorff_m, false);
+  EXPECT_FALSE(m3.complete);
+  EXPECT_GT(m3.distance.hausdorff_m, df.hausdorff_m);
+  // One within the bound is measured in full.
+  auto m4 = ref.measure(fine->positions, fine->indices, dc.hausdorff_m, false);
+  ASSERT_TRUE(m4.complete);
+  EXPECT_DOUBLE_EQ(m4.distance.hausdorff_m, df.hausdorff_m);
 }
 
 TEST(Decimate, BadMeshesAreRejected) {

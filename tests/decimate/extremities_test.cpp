@@ -2,6 +2,7 @@
 #include <cstdlib>
 #include <map>
 #include <set>
+#include <tuple>
 
 #include <gtest/gtest.h>
 
@@ -80,6 +81,102 @@ TEST(Extremities, DecimatedToBudgetStayClosedWithSeamsInPlace) {
   EXPECT_LT(rep.hausdorff_m, 0.01);  // under 1 cm for hands, head and feet at ~2,000 triangles
   // Weights of every survivor still sum to one.
   for (const auto& w : r->weights) EXPECT_NEAR(w.x + w.y + w.z + w.w, 1.0f, 1e-5f);
+}
+
+TEST(Extremities, BestOfCandidatesKeepsTheNearestPerPart) {
+  // Level 1 of the default chain with full-resolution extremities, measured against themselves.
+  const auto& m = chain().mid_full;
+  ASSERT_FALSE(m.positions.empty());
+  const std::vector<decimate::Candidate> cands = {{false, 1.0, 0.6f}, {false, 0.0, 0.6f}, {false, 1.0, 1.0f}};
+  auto run = [&](const std::vector<decimate::Candidate>& c, decimate::ExtremityReport* rep) {
+    decimate::ExtremityOptions o;
+    o.budget = 1200;
+    o.candidates = c;
+    return decimate::decimate_extremities(m, o, rep);
+  };
+  decimate::ExtremityReport best;
+  auto r = run(cands, &best);
+  ASSERT_TRUE(r) << r.error().message();
+  ASSERT_EQ(best.parts.size(), 5u);
+  std::vector<decimate::ExtremityReport> single(cands.size());
+  for (size_t c = 0; c < cands.size(); ++c) ASSERT_TRUE(run({cands[c]}, &single[c]));
+  bool some_not_first = false;
+  for (size_t p = 0; p < best.parts.size(); ++p) {
+    ASSERT_LT(best.chosen[p], cands.size());
+    some_not_first |= best.chosen[p] != 0;
+    // The kept candidate is the one measured nearest, and it is what that candidate alone gives.
+    for (size_t c = 0; c < cands.size(); ++c) EXPECT_LE(best.hausdorff_m[p], single[c].hausdorff_m[p]) << p << " " << c;
+    EXPECT_DOUBLE_EQ(best.hausdorff_m[p], single[best.chosen[p]].hausdorff_m[p]);
+  }
+  EXPECT_TRUE(some_not_first);  // the candidates do differ on these parts
+  auto check = mesher::check_mesh(r->positions, r->indices, false);
+  EXPECT_TRUE(check.closed && check.manifold && check.oriented);
+  EXPECT_EQ(check.connected_components, 1u);
+}
+
+TEST(Extremities, RestartCandidatesMeetTheZippersAndAreMeasuredAgainstTheReference) {
+  // Level 0's options on the full mesh give a lightly decimated copy; a coarser pass over the
+  // result restarts from that copy and is measured against the full-resolution parts.
+  const auto& full = chain().mid_full;
+  decimate::ExtremityOptions o0 = decimate::extremity_level_options(0, 4);
+  o0.budget = 4000;
+  mesher::SkinnedMesh copy;
+  auto l0 = decimate::decimate_extremities(full, o0, nullptr, &copy);
+  ASSERT_TRUE(l0) << l0.error().message();
+  size_t copy_ext = extremity_triangles(copy);
+  EXPECT_GT(copy_ext, extremity_triangles(*l0));
+  EXPECT_LE(copy_ext, 4u * 4000u + 100u);
+  decimate::ExtremityOptions o1 = decimate::extremity_level_options(1, 4);
+  ASSERT_GE(o1.candidates.size(), 2u);
+  o1.budget = 1500;
+  o1.reference = &full;
+  o1.restart = &copy;
+  decimate::ExtremityReport rep;
+  auto l1 = decimate::decimate_extremities(*l0, o1, &rep);
+  ASSERT_TRUE(l1) << l1.error().message();
+  EXPECT_LE(extremity_triangles(*l1), 1600u);
+  // Seams and body vertices in place, one closed manifold.
+  std::set<std::tuple<float, float, float>> kept;
+  for (auto p : l1->positions) kept.insert({p.x, p.y, p.z});
+  for (size_t i = 0; i < full.positions.size(); ++i)
+    if (full.part[i] == 0 || full.seam[i]) {
+      ASSERT_TRUE(kept.count({full.positions[i].x, full.positions[i].y, full.positions[i].z})) << i;
+    }
+  auto check = mesher::check_mesh(l1->positions, l1->indices, false);
+  EXPECT_TRUE(check.closed && check.manifold && check.oriented);
+  EXPECT_EQ(check.connected_components, 1u);
+  // The reported distances are to the full-resolution parts.
+  ASSERT_EQ(rep.parts.size(), 5u);
+  for (size_t p = 0; p < rep.parts.size(); ++p) {
+    mesher::SkinnedMesh a, b;
+    for (const mesher::SkinnedMesh* src : {&full, static_cast<const mesher::SkinnedMesh*>(&*l1)}) {
+      mesher::SkinnedMesh& dst = src == &full ? a : b;
+      std::map<uint32_t, uint32_t> map;
+      for (size_t t = 0; t < src->indices.size(); t += 3)
+        if (src->extremity_part(t) == rep.parts[p])
+          for (int k = 0; k < 3; ++k) {
+            uint32_t v = src->indices[t + k];
+            auto it = map.find(v);
+            if (it == map.end()) it = map.emplace(v, dst.append_vertex(*src, v)).first;
+            dst.indices.push_back(it->second);
+          }
+    }
+    auto d = decimate::mesh_distance(a.positions, a.indices, b.positions, b.indices);
+    EXPECT_NEAR(rep.hausdorff_m[p], d.hausdorff_m, 1e-9) << int(rep.parts[p]);
+  }
+  for (const auto& w : l1->weights) EXPECT_NEAR(w.x + w.y + w.z + w.w, 1.0f, 1e-5f);
+  // A reference cache shared by calls (as `build` does for its levels) changes no result.
+  auto cache = decimate::new_reference_cache();
+  o0.reference = &full;
+  o0.cache = o1.cache = cache;
+  mesher::SkinnedMesh copy2;
+  auto c0 = decimate::decimate_extremities(full, o0, nullptr, &copy2);
+  ASSERT_TRUE(c0);
+  o1.restart = &copy2;
+  auto c1 = decimate::decimate_extremities(*c0, o1);
+  ASSERT_TRUE(c1);
+  EXPECT_EQ(c1->indices, l1->indices);
+  EXPECT_EQ(c1->positions, l1->positions);
 }
 
 TEST(Extremities, ProxiesAreTexturedFromTheDetail) {

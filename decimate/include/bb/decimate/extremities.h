@@ -2,7 +2,10 @@
 //
 // decimate_extremities: the contour-sampled body keeps its rings; the OpenVDB extremities zipped
 // to it are decimated (decimate.h) to a triangle budget, with every body and seam vertex locked,
-// so the seams stay exactly where they were and no crack opens.
+// so the seams stay exactly where they were and no crack opens. With several candidates per part
+// (rule settings, and where to start: the given mesh or a restart mesh), each result is measured
+// against the full-resolution part and the nearest kept: a real optimisation by measured error
+// (meshoptimizer is never used here; it is bench_decimate's yardstick only).
 //
 // bake_proxies: at the lowest level the extremities are simple geometry (the mesher's coarse,
 // contour-sampled caps); their look comes from a texture baked from the full-resolution meshes:
@@ -13,6 +16,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -30,6 +34,50 @@ namespace bb::decimate {
 // mesh (skipped, and the call cheaper, without a report).
 Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh, size_t extremity_triangles,
                                                  Report* report = nullptr, unsigned threads = 0);
+
+// One way to decimate a part: from which mesh and with which rules (decimate.h's Options).
+struct Candidate {
+  bool restart = false;               // from ExtremityOptions::restart's part instead of the mesh's own
+  double member_k = 1;                // Options::member_k
+  float max_weight_difference = 0.6f; // Options::max_weight_difference
+};
+
+// Best of several candidates per part: each part is decimated to its share of the budget (shares
+// from `mesh`'s parts) once per candidate, each result's symmetric Hausdorff distance to the
+// reference's part (or the mesh's own, without a reference) is measured (ReferenceDistance) and
+// the nearest is kept (the first on ties). `reference` and `restart`: meshes with the same head,
+// hands and feet (same part tags, seam loops at the same positions), e.g. LOD 0 before decimation
+// and a lightly decimated copy of it, so that a part decimated from them still meets `mesh`'s
+// zippers. Locked vertices, the normal rules and skin-weight influences are decimate()'s; only the
+// rules' settings vary.
+// The reference's parts and their measurements (ReferenceDistance), built on first use and kept
+// for later calls with the same reference (`build`'s levels): pass one cache to each call.
+struct ReferenceCache;
+std::shared_ptr<ReferenceCache> new_reference_cache();
+
+struct ExtremityOptions {
+  size_t budget = 0;                               // extremity triangles in all
+  const mesher::SkinnedMesh* reference = nullptr;  // measured against; null: `mesh` itself
+  const mesher::SkinnedMesh* restart = nullptr;    // restart candidates start here; null: the reference
+  std::vector<Candidate> candidates{Candidate{}};  // at least one
+  unsigned threads = 0;                            // parts in parallel; 0: one per core
+  double snapshot_factor = 0;  // > 1, with a `snapshot` mesh given: the first candidate's passes copy
+                               // each part out at this many times its target (Options::snapshot_triangles)
+  bool snapshot_restarts = false;  // restart candidates after the first start from its snapshot
+  std::shared_ptr<ReferenceCache> cache;  // optional, see new_reference_cache
+};
+struct ExtremityReport {
+  Report report;                  // as decimate_extremities' report (whole mesh against `mesh`)
+  std::vector<uint8_t> parts;     // per part decimated: its tag,
+  std::vector<size_t> chosen;     // the candidate kept (index into ExtremityOptions::candidates),
+  std::vector<double> hausdorff_m, mean_m;  // and its distance to the reference's part
+};
+// `snapshot`: `mesh` with those copies as its extremities (a restart mesh for coarser levels).
+// Each part's locked vertices: those shared with any other triangle, on the part's border, or
+// tagged seam.
+Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh, const ExtremityOptions& options,
+                                                 ExtremityReport* report = nullptr,
+                                                 mesher::SkinnedMesh* snapshot = nullptr);
 
 // `level`'s body and zipper triangles with the extremity triangles of `from` (the same head, hands
 // and feet, e.g. decimated with their seam loops locked, so they meet `level`'s zippers exactly);
@@ -55,5 +103,16 @@ struct Proxies {
 // (same part tags) are at full resolution, in the same posture.
 Result<Proxies> bake_proxies(const mesher::SkinnedMesh& coarse, const mesher::SkinnedMesh& detailed,
                              const ProxyOptions& options = {});
+
+// The candidates `bodybuilder build` runs at `level` of `levels` (the last one, contour-sampled
+// proxies, is not decimated). Level 0, from full resolution: the strict run (member ratio 1, skin
+// weights 0.6), which copies the parts out after its first pass at or below twice its target (the
+// restart mesh of this level and of the coarser ones), then three restarts from that copy with
+// member ratio 0, 2 and 1. Middle levels: from the previous level (strict), or from level 0's copy
+// with the skin-weight threshold loosened to 1.0 (member ratio 1 and 0); the coarsest decimated
+// level: from the previous level (strict and loosened) or from level 0's copy (loosened). At
+// levels 1 and 2 a hand is tens of pixels tall; level 0 keeps the strict weight rule. Budget,
+// reference, restart, cache and threads are left to the caller.
+ExtremityOptions extremity_level_options(int level, int levels);
 
 }  // namespace bb::decimate
