@@ -643,6 +643,7 @@ TEST(BodyParts, RefreshBudgetCountsCards) {
   cfg.cache.posture_test = false;
   cfg.cache.view_threshold_deg = 8.0f;
   cfg.cache.refresh_budget = 1;
+  cfg.turn_limb_cards = true;
   FramePlanner planner(m, cfg);
   SceneCamera cam;
   cam.eye = {0, 1.5f, 30};
