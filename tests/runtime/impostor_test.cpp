@@ -165,6 +165,31 @@ Model tiny_model() {
   return m;
 }
 
+// `n` characters standing still in a row along x, `spacing` metres apart, centred on the origin.
+Crowd standing_row(const Model& m, int n, float spacing) {
+  Crowd crowd(m);
+  for (int i = 0; i < n; ++i)
+    crowd.add(Character{glm::vec3(spacing * (static_cast<float>(i) - 0.5f * static_cast<float>(n - 1)), 0, 0), 0.0f,
+                        1.0f, 0, 0.0f, 0.0f});
+  return crowd;
+}
+
+// The cache's view test alone, at `degrees`.
+ImpostorConfig view_test_only(float degrees) {
+  ImpostorConfig cfg;
+  cfg.cache.posture_test = false;
+  cfg.cache.view_threshold_deg = degrees;
+  return cfg;
+}
+
+// The default camera looking down -Z at y = 1.5 from `distance` metres.
+SceneCamera facing_camera(float distance) {
+  SceneCamera cam;
+  cam.eye = {0, 1.5f, distance};
+  cam.target = {0, 1.5f, 0};
+  return cam;
+}
+
 TEST(FramePlanner, TinyModelBoundsAndPairs) {
   Model m = tiny_model();
   EXPECT_NEAR(m.bounds_max.y, 3.0f, 1e-5f);  // tip reaches y = 3 at t = 0.5
@@ -174,15 +199,10 @@ TEST(FramePlanner, TinyModelBoundsAndPairs) {
 
 TEST(FramePlanner, CacheTestsDriveSnapshots) {
   Model m = tiny_model();
-  Crowd crowd(m);
-  for (int i = 0; i < 5; ++i) crowd.add(Character{glm::vec3(2.0f * i - 4.0f, 0, 0), 0.0f, 1.0f, 0, 0.0f, 0.0f});
-  ImpostorConfig cfg;
-  cfg.cache.posture_test = false;
-  cfg.cache.view_threshold_deg = 8.0f;
+  Crowd crowd = standing_row(m, 5, 2.0f);
+  ImpostorConfig cfg = view_test_only(8.0f);
   FramePlanner planner(m, cfg);
-  SceneCamera cam;
-  cam.eye = {0, 1.5f, 30};
-  cam.target = {0, 1.5f, 0};
+  const SceneCamera cam = facing_camera(30.0f);
   auto s0 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
   EXPECT_EQ(s0.impostors, 5);
   EXPECT_EQ(s0.snapshots, 5);
@@ -224,16 +244,11 @@ TEST(FramePlanner, CacheTestsDriveSnapshots) {
 // stalest first, the others kept one more frame; new impostors are refreshed whatever the budget.
 TEST(FramePlanner, RefreshBudgetServesTheStalestFirst) {
   Model m = tiny_model();
-  Crowd crowd(m);
-  for (int i = 0; i < 5; ++i) crowd.add(Character{glm::vec3(2.0f * i - 4.0f, 0, 0), 0.0f, 1.0f, 0, 0.0f, 0.0f});
-  ImpostorConfig cfg;
-  cfg.cache.posture_test = false;
-  cfg.cache.view_threshold_deg = 8.0f;
+  Crowd crowd = standing_row(m, 5, 2.0f);
+  ImpostorConfig cfg = view_test_only(8.0f);
   cfg.cache.refresh_budget = 1;
   FramePlanner planner(m, cfg);
-  SceneCamera cam;
-  cam.eye = {0, 1.5f, 30};
-  cam.target = {0, 1.5f, 0};
+  const SceneCamera cam = facing_camera(30.0f);
   auto s0 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
   EXPECT_EQ(s0.snapshots, 5);  // new: not held back by the budget
   EXPECT_EQ(s0.deferred_refreshes, 0);
@@ -496,9 +511,7 @@ TEST(BodyParts, ViewTestIgnoresTheCardsRollButNotItsTilt) {
   cfg.cache.posture_test = false;
   cfg.cache.view_threshold_deg = 8.0f;
   FramePlanner planner(m, cfg);
-  SceneCamera cam;
-  cam.eye = {0, 1.5f, 30};
-  cam.target = {0, 1.5f, 0};
+  const SceneCamera cam = facing_camera(30.0f);
   EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.part_snapshots, 2);
   // The arm turns 45 degrees about the line of sight: its card rolls with it, no snapshot.
   const FrameStats s1 = planner.plan(crowd, cam, 0.5f, RenderMode::kImpostor).stats;
@@ -550,9 +563,7 @@ TEST(BodyParts, LimbCardsTurnAboutTheLimbAxis) {
   cfg.part_cards = true;
   cfg.cache.posture_test = false;
   cfg.cache.view_threshold_deg = 8.0f;
-  SceneCamera cam;
-  cam.eye = {0, 1.5f, 30};
-  cam.target = {0, 1.5f, 0};
+  const SceneCamera cam = facing_camera(30.0f);
   for (bool turn : {true, false}) {
     cfg.turn_limb_cards = turn;
     FramePlanner planner(m, cfg);
@@ -645,9 +656,7 @@ TEST(BodyParts, RefreshBudgetCountsCards) {
   cfg.cache.refresh_budget = 1;
   cfg.turn_limb_cards = true;
   FramePlanner planner(m, cfg);
-  SceneCamera cam;
-  cam.eye = {0, 1.5f, 30};
-  cam.target = {0, 1.5f, 0};
+  const SceneCamera cam = facing_camera(30.0f);
   auto s0 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
   EXPECT_EQ(s0.part_snapshots, 6);  // new: every card, whatever the budget
   // Turning 20, 30, 40 degrees about +Y tilts each root card past 8 degrees (the round arm
