@@ -18,6 +18,7 @@
 #include "bb/motion/bvh.h"
 #include "commands.h"
 #include "io.h"
+#include "bb/parallel.h"
 
 namespace bb::cli {
 
@@ -146,25 +147,18 @@ int run(BuildArgs a) {
   int workers = a.jobs > 0 ? a.jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   workers = std::min<int>(workers, static_cast<int>(jobs.size()));
   a.inner_threads = workers > 1 ? 1 : 0;
-  std::atomic<size_t> next{0};
   std::atomic<int> done{0};
   std::mutex io;
   bool batch = jobs.size() > 1;
   auto t0 = std::chrono::steady_clock::now();
-  auto worker = [&] {
-    for (size_t i; (i = next++) < jobs.size();) {
-      run_job(jobs[i], a);
-      int d = ++done;
-      std::lock_guard<std::mutex> lock(io);
-      if (batch || !a.json)
-        std::fprintf(stderr, "[%d/%zu] %s: %s (%.2f s)\n", d, jobs.size(), jobs[i].name.c_str(),
-                     jobs[i].ok ? jobs[i].output.c_str() : ("FAILED: " + jobs[i].error).c_str(), jobs[i].seconds);
-    }
-  };
-  std::vector<std::thread> threads;
-  for (int w = 1; w < workers; ++w) threads.emplace_back(worker);
-  worker();
-  for (auto& t : threads) t.join();
+  parallel_for(jobs.size(), static_cast<unsigned>(std::max(1, workers)), [&](std::size_t i) {
+    run_job(jobs[i], a);
+    int d = ++done;
+    std::lock_guard<std::mutex> lock(io);
+    if (batch || !a.json)
+      std::fprintf(stderr, "[%d/%zu] %s: %s (%.2f s)\n", d, jobs.size(), jobs[i].name.c_str(),
+                   jobs[i].ok ? jobs[i].output.c_str() : ("FAILED: " + jobs[i].error).c_str(), jobs[i].seconds);
+  });
   double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   int failed = static_cast<int>(std::count_if(jobs.begin(), jobs.end(), [](const Job& j) { return !j.ok; }));
   if (a.json) {

@@ -9,6 +9,7 @@
 #include <unordered_map>
 
 #include "triangle_grid.h"
+#include "bb/parallel.h"
 
 namespace bb::decimate {
 
@@ -216,18 +217,7 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
       }
     }
   };
-  unsigned threads = opt.threads;
-  if (threads == 0) threads = std::max(1u, std::thread::hardware_concurrency());
-  {
-    std::atomic<size_t> next{0};
-    auto worker = [&] {
-      for (size_t i; (i = next++) < jobs.size();) run(jobs[i]);
-    };
-    std::vector<std::thread> pool;
-    for (unsigned c = 1; c < std::min<size_t>(threads, jobs.size()); ++c) pool.emplace_back(worker);
-    worker();
-    for (auto& t : pool) t.join();
-  }
+  parallel_for(jobs.size(), opt.threads, [&](std::size_t i) { run(jobs[i]); });
   for (const Job& j : jobs)
     if (!j.result) return j.result.error();
   // Reassembly: the body and zipper triangles as they were, then the decimated parts.

@@ -12,6 +12,7 @@
 #include "bb/mesher/mesh_check.h"
 #include "bb/modeler/implicit_surface.h"
 #include "bb/motion/walk.h"
+#include "bb/parallel.h"
 
 namespace bb::exporter {
 
@@ -215,17 +216,7 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
       r.mean_rel = e.mean_m / height;
     }
   };
-  {
-    std::vector<std::thread> threads;
-    unsigned cores = opt.threads ? opt.threads : std::max(1u, std::thread::hardware_concurrency());
-    std::atomic<int> next{0};
-    auto worker = [&] {
-      for (int l; (l = next++) < k;) finish(l);
-    };
-    for (unsigned c = 1; c < std::min<unsigned>(cores, k); ++c) threads.emplace_back(worker);
-    worker();
-    for (auto& t : threads) t.join();
-  }
+  parallel_for(static_cast<std::size_t>(k), opt.threads, [&](std::size_t l) { finish(static_cast<int>(l)); });
   out.times.checks = since(t0);
 
   // Lowest level: the textured proxies (times.proxies: the baking itself, which overlaps the
