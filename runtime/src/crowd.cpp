@@ -72,6 +72,34 @@ glm::mat4 placement(const Character& ch) {
                    glm::vec4(ch.position, 1));
 }
 
+// Rects in window units as (x0, y0, x1, y1): the smallest holding both, and their overlap.
+glm::vec4 rect_union(const glm::vec4& a, const glm::vec4& b) {
+  return glm::vec4(glm::min(glm::vec2(a), glm::vec2(b)), glm::max(glm::vec2(a.z, a.w), glm::vec2(b.z, b.w)));
+}
+glm::vec4 rect_intersection(const glm::vec4& a, const glm::vec4& b) {
+  return glm::vec4(glm::max(glm::vec2(a), glm::vec2(b)), glm::min(glm::vec2(a.z, a.w), glm::vec2(b.z, b.w)));
+}
+
+// The posture distances (squared, model space) between baked frames f0 and f1 of `bc`.
+std::array<float, 4> posture_at(const BakedClip& bc, int f0, int f1, float blend) {
+  std::array<float, 4> p;
+  for (int k = 0; k < 4; ++k) p[k] = bc.posture[f0][k] + (bc.posture[f1][k] - bc.posture[f0][k]) * blend;
+  return p;
+}
+
+// The refresh budget's share-out (the paper's section 7, item 1): moves the `budget_left` stalest
+// of `pending` (ties to the lower index, so the choice does not depend on the sort) to its front
+// and returns how many that is (`order`: the record's index, character then part).
+template <typename Pending>
+std::size_t stalest_first(std::vector<Pending>& pending, int budget_left) {
+  const std::size_t take = static_cast<std::size_t>(std::clamp(budget_left, 0, static_cast<int>(pending.size())));
+  auto staler = [](const Pending& a, const Pending& b) {
+    return a.staleness != b.staleness ? a.staleness > b.staleness : a.order < b.order;
+  };
+  if (take < pending.size()) std::nth_element(pending.begin(), pending.begin() + take, pending.end(), staler);
+  return take;
+}
+
 // Area of `rect` (window units, [-1, 1]^2) in texels of a `size`-texel window.
 float rect_texels(const glm::vec4& rect, int size) {
   const float h = 0.5f * static_cast<float>(size);
@@ -256,10 +284,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
           sc.half_size = std::max(sc.half_size, static_cast<float>(config_.windows.size[wclass]) * sc.distance / (2.0f * ppm1));
         const glm::mat3 view = view_rotation(sc, ch.yaw);
         // Posture distances of the current frame (squared, model space, scaled).
-        std::array<float, 4> posture;
-        const auto& p0 = bc.posture[f0];
-        const auto& p1 = bc.posture[f1];
-        for (int k = 0; k < 4; ++k) posture[k] = p0[k] + (p1[k] - p0[k]) * blend;
+        const std::array<float, 4> posture = posture_at(bc, f0, f1, blend);
         const bool must = refresh;  // no usable snapshot: refreshed whatever the budget
         float staleness = 0.0f;
         if (!refresh) {
@@ -304,7 +329,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
               // Tighter: the union of the body parts' boxes, each carried by its bone (a limb's
               // box lies along the limb), within the pose's box.
               const glm::mat4 place = placement(ch);
-              glm::vec4 q(1e30f, 1e30f, -1e30f, -1e30f), sn = q;
+              glm::vec4 quad(1e30f, 1e30f, -1e30f, -1e30f), clear = quad;
               for (const BodyPart& bp : parts) {
                 const glm::mat4 bone = place * palette_matrix(pal, np, bc, f0, f1, blend, bp.bone);
                 const WindowRects rr = window_rects(sc, win.size, [&](int k) {
@@ -312,20 +337,17 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
                                     (k & 4) ? bp.box_max.z : bp.box_min.z);
                   return glm::vec3(bone * glm::vec4(c, 1.0f)) - ta;
                 });
-                q = glm::vec4(glm::min(glm::vec2(q), glm::vec2(rr.quad)), glm::max(glm::vec2(q.z, q.w), glm::vec2(rr.quad.z, rr.quad.w)));
-                sn = glm::vec4(glm::min(glm::vec2(sn), glm::vec2(rr.snapshot)),
-                               glm::max(glm::vec2(sn.z, sn.w), glm::vec2(rr.snapshot.z, rr.snapshot.w)));
+                quad = rect_union(quad, rr.quad);
+                clear = rect_union(clear, rr.snapshot);
               }
-              r.quad = glm::vec4(glm::max(glm::vec2(r.quad), glm::vec2(q)), glm::min(glm::vec2(r.quad.z, r.quad.w), glm::vec2(q.z, q.w)));
-              r.snapshot = glm::vec4(glm::max(glm::vec2(r.snapshot), glm::vec2(sn)),
-                                     glm::min(glm::vec2(r.snapshot.z, r.snapshot.w), glm::vec2(sn.z, sn.w)));
+              r.quad = rect_intersection(r.quad, quad);
+              r.snapshot = rect_intersection(r.snapshot, clear);
             }
             next.rect = r.quad;
             snap_rect = r.snapshot;
           }
           const int slod = config_.snapshot_lod_from_screen ? std::min(lod_for(pixels, camera.height), lods - 1)
                                                             : window_lod[win.size_class];
-          const BillboardGpu card = billboard(ta, next, page);
           if (must || !budget) {
             cs = next;
             plan_.snapshots[slod].push_back(snapshot_gpu(inst, sc, ta, radius, win, page, snap_rect));
@@ -336,8 +358,8 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
             // Stale: drawn from its old snapshot unless the budget reaches it below.
             pending_.push_back(PendingRefresh{staleness, static_cast<std::uint32_t>(i),
                                               static_cast<std::uint32_t>(plan_.billboards.size()), slod, next,
-                                              snapshot_gpu(inst, sc, ta, radius, win, page, snap_rect), card,
-                                              m.lods[slod].triangle_count()});
+                                              snapshot_gpu(inst, sc, ta, radius, win, page, snap_rect),
+                                              billboard(ta, next, page), m.lods[slod].triangle_count()});
           }
         }
         // The old snapshot is drawn where the character stands now (Ta moves with it).
@@ -357,16 +379,11 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
   }
   // The budget left goes to the stalest; the others wait (section 7, item 1).
   if (!pending_.empty()) {
-    const std::size_t take = static_cast<std::size_t>(std::clamp(budget_left_, 0, static_cast<int>(pending_.size())));
-    // Most stale first; ties to the lower index, so the choice does not depend on the sort.
-    auto staler = [](const PendingRefresh& a, const PendingRefresh& b) {
-      return a.staleness != b.staleness ? a.staleness > b.staleness : a.character < b.character;
-    };
-    if (take < pending_.size()) std::nth_element(pending_.begin(), pending_.begin() + take, pending_.end(), staler);
+    const std::size_t take = stalest_first(pending_, budget_left_);
     for (std::size_t k = 0; k < take; ++k) {
       const PendingRefresh& r = pending_[k];
-      st.quad_texels += rect_texels(r.state.rect, r.state.window.size) - rect_texels(cache_[r.character].rect, r.state.window.size);
-      cache_[r.character] = r.state;
+      st.quad_texels += rect_texels(r.state.rect, r.state.window.size) - rect_texels(cache_[r.order].rect, r.state.window.size);
+      cache_[r.order] = r.state;
       plan_.billboards[r.billboard] = r.card;
       plan_.snapshots[r.lod].push_back(r.snapshot);
       ++st.snapshots;
@@ -375,24 +392,19 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
     st.deferred_refreshes = static_cast<int>(pending_.size() - take);
   }
   if (!pending_parts_.empty()) {
-    const std::size_t take = static_cast<std::size_t>(std::clamp(budget_left_, 0, static_cast<int>(pending_parts_.size())));
-    auto staler = [](const PendingPart& a, const PendingPart& b) {
-      return a.staleness != b.staleness ? a.staleness > b.staleness
-                                        : a.character != b.character ? a.character < b.character : a.part < b.part;
-    };
-    if (take < pending_parts_.size())
-      std::nth_element(pending_parts_.begin(), pending_parts_.begin() + take, pending_parts_.end(), staler);
+    const std::size_t take = stalest_first(pending_parts_, budget_left_);
     for (std::size_t k = 0; k < take; ++k) {
       const PendingPart& r = pending_parts_[k];
-      PartCache& pc = part_cache_[r.character * static_cast<std::size_t>(parts_) + r.part];
+      PartCache& pc = part_cache_[r.order];
       st.quad_texels += rect_texels(r.next.rect, r.next.window.size) - rect_texels(pc.rect, pc.window.size);
       pc = r.next;
       plan_.billboards[r.billboard] = r.card;
       plan_.snapshots[r.lod].push_back(r.snapshot);
       ++st.part_snapshots;
       st.snapshot_triangles += r.triangles;
-      if (!refreshed_[r.character]) {
-        refreshed_[r.character] = 1;
+      const std::size_t character = r.order / static_cast<std::size_t>(parts_);
+      if (!refreshed_[character]) {
+        refreshed_[character] = 1;
         ++st.snapshots;
       }
     }
@@ -478,8 +490,7 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
   // out of the card's plane, so the test is the angle between the card's normal, carried by the
   // bone, and the current line of sight to the part.
   const CacheConfig& cc = config_.cache;
-  std::array<float, 4> posture;
-  for (int k = 0; k < 4; ++k) posture[k] = bc.posture[f0][k] + (bc.posture[f1][k] - bc.posture[f0][k]) * blend;
+  const std::array<float, 4> posture = posture_at(bc, f0, f1, blend);
   const float w = distance_weight(cc, glm::distance(ta, camera.eye));
   // A limb card turns about the limb's axis to face the eye (the cylinder's picture does not
   // change); the view test then sees only the change of the angle between that axis and the line
@@ -570,7 +581,7 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
       std::size_t tris = 0;
       for (std::size_t k = 0; k < prims; ++k) tris += pi.ranges[k * parts_ + p].count / 3;
       if (budget && !must[p]) {
-        pending_parts_.push_back(PendingPart{staleness[p], static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(p),
+        pending_parts_.push_back(PendingPart{staleness[p], static_cast<std::uint32_t>(i * parts_ + p),
                                              static_cast<std::uint32_t>(plan_.billboards.size()), slod, next, s,
                                              card(next, glm::mat3(1.0f)), tris});
       } else {

@@ -211,7 +211,7 @@ class FramePlanner {
   // A stale impostor's refresh, held back until the frame's budget is shared out.
   struct PendingRefresh {
     float staleness = 0.0f;  // > 1: how far past its thresholds
-    std::uint32_t character = 0, billboard = 0;  // index in the crowd, in plan_.billboards
+    std::uint32_t order = 0, billboard = 0;  // the character's index in the crowd; in plan_.billboards
     int lod = 0;
     CacheState state;  // what the cache holds once refreshed
     SnapshotGpu snapshot;
@@ -221,7 +221,7 @@ class FramePlanner {
   // The same for one part card.
   struct PendingPart {
     float staleness = 0.0f;
-    std::uint32_t character = 0, part = 0, billboard = 0;
+    std::uint32_t order = 0, billboard = 0;  // the card's index in part_cache_; in plan_.billboards
     int lod = 0;
     PartCache next;
     SnapshotGpu snapshot;
