@@ -53,6 +53,8 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["impostor_edges"] = s.impostor_edges;
   if (!s.snapshot_lod_from_screen) j["snapshot_lod"] = "window";
   if (!s.perspective_snapshots) j["snapshot_camera"] = "orthographic";
+  j["snapshot_grid"] = s.aligned_snapshots ? "pixels" : "free";
+  j["snapshot_samples"] = s.snapshot_samples;
   if (s.hold_poses) j["hold_poses"] = true;
   if (s.refresh_budget > 0) {
     j["refresh_budget"] = s.refresh_budget;
@@ -148,6 +150,10 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (a.limb_cards != "turn" && a.limb_cards != "fixed")
     return fail("--limb-cards: expected turn or fixed (got \"" + a.limb_cards + "\")");
   s.turn_limb_cards = a.limb_cards == "turn";
+  if (a.snapshot_grid != "pixels" && a.snapshot_grid != "free")
+    return fail("--snapshot-grid: expected pixels or free (got \"" + a.snapshot_grid + "\")");
+  s.aligned_snapshots = a.snapshot_grid == "pixels";
+  s.snapshot_samples = a.snapshot_samples;
   s.distance_weighting = a.distance_weighting;
   s.orbit_deg_per_s = a.orbit;
   s.msaa = a.msaa;
@@ -336,6 +342,12 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--limb-cards", a->limb_cards,
                   "With --impostor-parts: limb cards turn about the limb's axis to face the eye, or stay fixed to the bone")
       ->capture_default_str();
+  cmd->add_option("--snapshot-grid", a->snapshot_grid,
+                  "Snapshot texels: pixels (on the screen's pixel grid, exact when taken) or free (section 4.2's camera)")
+      ->capture_default_str();
+  cmd->add_option("--snapshot-samples", a->snapshot_samples,
+                  "Samples per snapshot texel (4: multisampled like the scene, one tap per pixel; 1: four taps)")
+      ->capture_default_str()->check(CLI::IsMember({1, 4}));
   cmd->add_option("--refresh-budget", a->refresh_budget,
                   "At most N impostors refreshed per frame, the stalest first (0: no limit; the paper's future work)")
       ->capture_default_str();

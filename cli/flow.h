@@ -47,6 +47,8 @@ struct FlowSettings {
   bool part_cards = false;                  // ImpostorConfig::part_cards (one card per body part)
   int refresh_budget = 0;                   // CacheConfig::refresh_budget (0: no limit)
   bool turn_limb_cards = false;             // ImpostorConfig::turn_limb_cards
+  bool aligned_snapshots = false;           // ImpostorConfig::aligned_snapshots (texels on pixels)
+  int snapshot_samples = 1;                 // ImpostorConfig::snapshot_samples
   int clip = -1;                 // -1: a clip named like "walk" if any, else 0
   float clip_speed_mps = 0;      // speed the clip walks at; 0: from the clip name "..._1.20mps" or none
   std::vector<int> keep_frames;  // measured frame indices whose images are returned
@@ -104,6 +106,8 @@ struct FlowArgs {
   bool impostor_parts = false;
   int refresh_budget = 0;
   std::string limb_cards = "fixed";
+  std::string snapshot_grid = "free";
+  int snapshot_samples = 1;
   bool quiet = false;  // no summary on stdout (the demo prints its own)
   std::string scaling_list = "20,100,500,1000,2000,5000,10000";
   int scaling_frames = 10;

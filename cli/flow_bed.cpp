@@ -81,6 +81,8 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   config.part_cards = s.part_cards;
   config.cache.refresh_budget = s.refresh_budget;
   config.turn_limb_cards = s.turn_limb_cards;
+  config.aligned_snapshots = s.aligned_snapshots;
+  config.snapshot_samples = s.snapshot_samples;
   DrawOptions draw_options;
   draw_options.edges = s.impostor_edges == "coverage"  ? ImpostorEdges::kAlphaToCoverage
                        : s.impostor_edges == "test"    ? ImpostorEdges::kAlphaTest

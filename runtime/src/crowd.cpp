@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -24,8 +25,13 @@ WindowRects window_rects(const SnapshotCamera& cam, int window_size, Corner&& co
   for (int k = 0; k < 8; ++k) {
     const glm::vec3 d = corner(k);
     float s = 1.0f / cam.half_size;
-    if (cam.perspective) s *= cam.distance / std::max(cam.distance + glm::dot(d, cam.vo), 1e-3f * cam.distance);
-    const glm::vec2 q(glm::dot(d, cam.ho) * s, glm::dot(d, cam.uo) * s);
+    glm::vec2 q(glm::dot(d, cam.ho), glm::dot(d, cam.uo));
+    if (cam.perspective) {
+      const float depth = glm::dot(d, cam.vo);
+      s *= cam.distance / std::max(cam.distance + depth, 1e-3f * cam.distance);
+      q -= cam.offset * (depth / cam.distance);  // off-axis window (aligned snapshots)
+    }
+    q *= s;
     rmin = glm::min(rmin, q);
     rmax = glm::max(rmax, q);
   }
@@ -35,16 +41,18 @@ WindowRects window_rects(const SnapshotCamera& cam, int window_size, Corner&& co
           glm::vec4(glm::clamp((t0 - 4.0f) * texel, -1.0f, 1.0f), glm::clamp((t1 + 4.0f) * texel, -1.0f, 1.0f))};
 }
 
-// What the GPU needs to draw one snapshot of `instance` with `cam` (centred on `centre`, a sphere
-// of `radius` metres) into `win` of a `page`-pixel atlas page, clearing `rect` of the window.
-SnapshotGpu snapshot_gpu(const InstanceGpu& instance, const SnapshotCamera& cam, const glm::vec3& centre, float radius,
-                         const AtlasWindow& win, float page, const glm::vec4& rect) {
+// What the GPU needs to draw one snapshot of `instance` with `cam` (its window centred on cam.ta,
+// the subject a sphere of `radius` metres) into `win` of a `page`-pixel atlas page, clearing `rect`
+// of the window.
+SnapshotGpu snapshot_gpu(const InstanceGpu& instance, const SnapshotCamera& cam, float radius, const AtlasWindow& win,
+                         float page, const glm::vec4& rect) {
   SnapshotGpu s;
   s.instance = instance;
   s.ho_half = glm::vec4(cam.ho, cam.half_size);
   s.uo_dist = glm::vec4(cam.uo, cam.distance);
   s.vo = glm::vec4(cam.vo, cam.perspective ? 1.0f : 0.0f);
-  s.ta = glm::vec4(centre, radius);
+  s.ta = glm::vec4(cam.ta, radius);
+  s.offset = glm::vec4(cam.offset, 0.0f, 0.0f);
   const float half = static_cast<float>(win.size) / page;  // NDC half extent = size / page
   s.window = glm::vec4(-1.0f + (2.0f * win.x + win.size) / page, -1.0f + (2.0f * win.y + win.size) / page, half,
                        static_cast<float>(win.page));
@@ -106,13 +114,28 @@ float rect_texels(const glm::vec4& rect, int size) {
   return (rect.z - rect.x) * h * (rect.w - rect.y) * h;
 }
 
-// The impostor of a character whose Ta is at `ta` now, from its cached snapshot `cs`.
+// The impostor of a character whose Ta is at `ta` now, from its cached snapshot `cs`: a quad
+// facing the eye, or (aligned snapshots) parallel to the screen, whose axes are the camera's
+// `right` and `up`.
 template <typename State>
-BillboardGpu billboard(const glm::vec3& ta, const State& cs, float page) {
+BillboardGpu billboard(const glm::vec3& ta, const State& cs, float page, const glm::vec3& right, const glm::vec3& up) {
   const AtlasWindow& win = cs.window;
-  return BillboardGpu{glm::vec4(ta, cs.half_size),
-                      glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
-                      glm::vec4(static_cast<float>(win.page), 0.0f, 0.0f, 0.0f), cs.rect};
+  BillboardGpu b{glm::vec4(ta, cs.half_size),
+                 glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
+                 glm::vec4(static_cast<float>(win.page), 0.0f, 0.0f, 0.0f), cs.rect};
+  if (cs.aligned) {
+    b.ta_half = glm::vec4(ta + cs.offset.x * right + cs.offset.y * up, cs.half_size);
+    b.axis_x = glm::vec4(right * cs.half_size, 1.0f);
+    b.axis_y = glm::vec4(up * cs.half_size, 1.0f);
+  }
+  return b;
+}
+
+// The camera's right and up axes (unit, world).
+void camera_right_up(const SceneCamera& camera, glm::vec3& right, glm::vec3& up) {
+  const glm::mat4 v = camera.view();
+  right = glm::vec3(v[0][0], v[1][0], v[2][0]);
+  up = glm::vec3(v[0][1], v[1][1], v[2][1]);
 }
 
 // How far past the posture threshold: the largest relative change of the four squared
@@ -203,6 +226,8 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
   }
   for (auto& p : planes) p /= glm::length(glm::vec3(p));
   const glm::vec3 fwd = glm::normalize(camera.target - camera.eye);
+  glm::vec3 cam_right, cam_up;
+  camera_right_up(camera, cam_right, cam_up);
   const float ppm1 = camera.pixels_per_metre(1.0f);
   const bool impostor_mode = mode != RenderMode::kGeometry;
   const CacheConfig& cc = config_.cache;
@@ -255,7 +280,13 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
       as_geometry = !plan_parts(i, ch, bc, f0, f1, blend, inst, ta, radius, pixels, camera, st);
     } else if (!as_geometry) {
       CacheState& cs = cache_[i];
-      const int wclass = choose_window(config_.windows, pixels * config_.texels_per_pixel);
+      // Aligned snapshots hold the sphere's whole picture (wider off the axis) at the exact scale.
+      float need = pixels;
+      if (config_.aligned_snapshots) {
+        const float a = aligned_pixels(camera, ta, radius);
+        if (std::isfinite(a)) need = a;
+      }
+      const int wclass = choose_window(config_.windows, need * config_.texels_per_pixel);
       bool refresh = !cs.valid;
       if (!refresh && cs.window.size_class != wclass) {
         refresh = true;
@@ -282,7 +313,9 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
                                                        config_.perspective_snapshots);
         if (config_.texel_per_pixel && sc.perspective)
           sc.half_size = std::max(sc.half_size, static_cast<float>(config_.windows.size[wclass]) * sc.distance / (2.0f * ppm1));
+        // The view test's frame is section 4.2's (the line of sight to Ta) in either case.
         const glm::mat3 view = view_rotation(sc, ch.yaw);
+
         // Posture distances of the current frame (squared, model space, scaled).
         const std::array<float, 4> posture = posture_at(bc, f0, f1, blend);
         const bool must = refresh;  // no usable snapshot: refreshed whatever the budget
@@ -309,11 +342,17 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
         }
         const AtlasWindow& win = cs.window;
         if (refresh) {
+          std::optional<SnapshotCamera> aligned;
+          if (config_.aligned_snapshots)
+            aligned = make_aligned_snapshot_camera(camera, ta, radius, win.size, config_.texels_per_pixel);
+          if (aligned) sc = *aligned;
           CacheState next = cs;
           next.valid = true;
           next.view = view;
           next.posture = posture;
           next.half_size = sc.half_size;
+          next.aligned = aligned.has_value();
+          next.offset = glm::vec2(glm::dot(sc.ta - ta, cam_right), glm::dot(sc.ta - ta, cam_up));
           next.rect = glm::vec4(-1, -1, 1, 1);
           glm::vec4 snap_rect = next.rect;
           if (config_.tight_quads) {
@@ -323,7 +362,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
             const glm::vec3 lo = glm::min(b0[0], b1[0]) * ch.scale, hi = glm::max(b0[1], b1[1]) * ch.scale;
             WindowRects r = window_rects(sc, win.size, [&](int k) {
               const glm::vec3 p((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
-              return ch.position + glm::vec3(cy * p.x + sy * p.z, p.y, -sy * p.x + cy * p.z) - ta;
+              return ch.position + glm::vec3(cy * p.x + sy * p.z, p.y, -sy * p.x + cy * p.z) - sc.ta;
             });
             if (parts.size() > 1) {
               // Tighter: the union of the body parts' boxes, each carried by its bone (a limb's
@@ -335,7 +374,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
                 const WindowRects rr = window_rects(sc, win.size, [&](int k) {
                   const glm::vec3 c((k & 1) ? bp.box_max.x : bp.box_min.x, (k & 2) ? bp.box_max.y : bp.box_min.y,
                                     (k & 4) ? bp.box_max.z : bp.box_min.z);
-                  return glm::vec3(bone * glm::vec4(c, 1.0f)) - ta;
+                  return glm::vec3(bone * glm::vec4(c, 1.0f)) - sc.ta;
                 });
                 quad = rect_union(quad, rr.quad);
                 clear = rect_union(clear, rr.snapshot);
@@ -350,7 +389,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
                                                             : window_lod[win.size_class];
           if (must || !budget) {
             cs = next;
-            plan_.snapshots[slod].push_back(snapshot_gpu(inst, sc, ta, radius, win, page, snap_rect));
+            plan_.snapshots[slod].push_back(snapshot_gpu(inst, sc, radius, win, page, snap_rect));
             ++st.snapshots;
             st.snapshot_triangles += m.lods[slod].triangle_count();
             --budget_left_;
@@ -358,12 +397,12 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
             // Stale: drawn from its old snapshot unless the budget reaches it below.
             pending_.push_back(PendingRefresh{staleness, static_cast<std::uint32_t>(i),
                                               static_cast<std::uint32_t>(plan_.billboards.size()), slod, next,
-                                              snapshot_gpu(inst, sc, ta, radius, win, page, snap_rect),
-                                              billboard(ta, next, page), m.lods[slod].triangle_count()});
+                                              snapshot_gpu(inst, sc, radius, win, page, snap_rect),
+                                              billboard(ta, next, page, cam_right, cam_up), m.lods[slod].triangle_count()});
           }
         }
         // The old snapshot is drawn where the character stands now (Ta moves with it).
-        plan_.billboards.push_back(billboard(ta, cs, page));
+        plan_.billboards.push_back(billboard(ta, cs, page, cam_right, cam_up));
         st.quad_texels += rect_texels(cs.rect, win.size);
         ++st.impostors;
         ++st.impostors_per_window[win.size_class];
@@ -454,7 +493,11 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
     bone[p] = place * palette_matrix(pal, np, bc, f0, f1, blend, parts[p].bone);
     centre[p] = glm::vec3(bone[p] * glm::vec4(parts[p].centre, 1.0f));
     const float depth = glm::dot(centre[p] - camera.eye, fwd);
-    const float px = 2.0f * parts[p].radius * sc * ppm1 / std::max(depth, 1e-3f);
+    float px = 2.0f * parts[p].radius * sc * ppm1 / std::max(depth, 1e-3f);
+    if (config_.aligned_snapshots) {
+      const float a = aligned_pixels(camera, centre[p], parts[p].radius * sc);
+      if (std::isfinite(a)) px = a;
+    }
     const int wclass = choose_window(config_.windows, px * config_.texels_per_pixel);
     PartCache& pc = pcs[p];
     due[p] = all;
@@ -555,13 +598,18 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
                                                 config_.perspective_snapshots);
       if (config_.texel_per_pixel && cam.perspective)
         cam.half_size = std::max(cam.half_size, static_cast<float>(win.size) * cam.distance / (2.0f * ppm1));
-      // The card at snapshot time, in the bone's palette space.
+      // The line of sight to the part, which the view test follows.
+      const glm::vec3 los = cam.vo;
+      if (config_.aligned_snapshots)
+        if (auto a = make_aligned_snapshot_camera(camera, centre[p], r, win.size, config_.texels_per_pixel)) cam = *a;
+      // The card at snapshot time (the window's plane through its centre), in the bone's palette
+      // space.
       PartCache next = pc;
       const glm::mat4 inv = glm::inverse(bone[p]);
-      next.centre = glm::vec3(inv * glm::vec4(centre[p], 1.0f));
+      next.centre = glm::vec3(inv * glm::vec4(cam.ta, 1.0f));
       next.axis_x = glm::vec3(inv * glm::vec4(cam.ho * cam.half_size, 0.0f));
       next.axis_y = glm::vec3(inv * glm::vec4(cam.uo * cam.half_size, 0.0f));
-      next.normal = glm::vec3(inv * glm::vec4(cam.vo, 0.0f));
+      next.normal = glm::vec3(inv * glm::vec4(los, 0.0f));
       next.half_size = cam.half_size;
       next.posture = posture;
       next.rect = glm::vec4(-1, -1, 1, 1);
@@ -571,12 +619,12 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
         const WindowRects rr = window_rects(cam, win.size, [&](int k) {
           const glm::vec3 q((k & 1) ? bp.box_max.x : bp.box_min.x, (k & 2) ? bp.box_max.y : bp.box_min.y,
                             (k & 4) ? bp.box_max.z : bp.box_min.z);
-          return glm::vec3(bone[p] * glm::vec4(q, 1.0f)) - centre[p];
+          return glm::vec3(bone[p] * glm::vec4(q, 1.0f)) - cam.ta;
         });
         next.rect = rr.quad;
         snap_rect = rr.snapshot;
       }
-      SnapshotGpu s = snapshot_gpu(inst, cam, centre[p], r, win, page, snap_rect);
+      SnapshotGpu s = snapshot_gpu(inst, cam, r, win, page, snap_rect);
       s.part = glm::vec4(static_cast<float>(p), 0.0f, 0.0f, 0.0f);
       std::size_t tris = 0;
       for (std::size_t k = 0; k < prims; ++k) tris += pi.ranges[k * parts_ + p].count / 3;

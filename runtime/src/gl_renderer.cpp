@@ -68,6 +68,7 @@ layout(location = 9) in vec4 i_vo;
 layout(location = 10) in vec4 i_ta;
 layout(location = 11) in vec4 i_window;
 layout(location = 12) in vec4 i_rect;
+layout(location = 13) in vec4 i_offset;  // off-axis window (aligned snapshots), metres
 out float gl_ClipDistance[4];
 void main() {
   vec3 d = skin_world() - i_ta.xyz;
@@ -78,7 +79,7 @@ void main() {
   if (i_vo.w > 0.5) {  // perspective from the eye: w = distance along Vo
     float z = dist + depth;
     float n = max(dist - r, 0.01 * dist), f = dist + r;
-    c = vec4(xy * dist, ((f + n) * z - 2.0 * f * n) / (f - n), z);
+    c = vec4(xy * dist - i_offset.xy * (depth / h), ((f + n) * z - 2.0 * f * n) / (f - n), z);
   } else {
     c = vec4(xy, clamp(depth / r, -1.0, 1.0), 1.0);
   }
@@ -131,6 +132,20 @@ layout(location = 0) out vec4 o_color;
 void main() { o_color = vec4(0.0); }
 )";
 
+// Multisampled snapshots: the scratch page's samples averaged into the atlas (premultiplied, so
+// alpha is the texel's coverage), over the same rects as the clear.
+const char* kResolveFs = R"(#version 450 core
+layout(binding = 3) uniform sampler2DMS u_scratch;
+uniform int u_samples;
+layout(location = 0) out vec4 o_color;
+void main() {
+  ivec2 p = ivec2(gl_FragCoord.xy);
+  vec4 sum = vec4(0.0);
+  for (int k = 0; k < u_samples; ++k) sum += texelFetch(u_scratch, p, k);
+  o_color = sum / float(u_samples);
+}
+)";
+
 const char* kBillboardVs = R"(#version 450 core
 layout(location = 0) in vec4 i_ta_half;
 layout(location = 1) in vec4 i_uv;
@@ -169,6 +184,7 @@ void main() {
 const char* kBillboardFs = R"(#version 450 core
 layout(binding = 2) uniform sampler2DArray u_atlas;
 uniform int u_edges;  // 0: alpha test, 1: premultiplied blending, 2: alpha to coverage, 4: one tap
+uniform int u_taps;   // 4: the pixel's coverage from four taps; 1: one tap (the texels hold it)
 uniform int u_samples;
 uniform vec2 u_sample_pos[16];  // offsets from the pixel centre, pixels
 in vec3 v_uvl;
@@ -199,8 +215,9 @@ void main() {
     o_color = vec4(t.rgb / t.a, 1.0);
     return;
   }
-  vec4 c = 0.25 * (tap(v_uvl.xy - 0.125 * dx - 0.375 * dy) + tap(v_uvl.xy + 0.375 * dx - 0.125 * dy) +
-                   tap(v_uvl.xy - 0.375 * dx + 0.125 * dy) + tap(v_uvl.xy + 0.125 * dx + 0.375 * dy));
+  vec4 c = u_taps == 1 ? tap(v_uvl.xy)
+                       : 0.25 * (tap(v_uvl.xy - 0.125 * dx - 0.375 * dy) + tap(v_uvl.xy + 0.375 * dx - 0.125 * dy) +
+                                 tap(v_uvl.xy - 0.375 * dx + 0.125 * dy) + tap(v_uvl.xy + 0.125 * dx + 0.375 * dy));
   if (u_edges == 0) {
     if (c.a < 0.5) discard;
     o_color = vec4(c.rgb / c.a, 1.0);
@@ -302,6 +319,9 @@ struct Renderer::Impl {
   GLuint white = 0;
   GLuint palette_buffer = 0, palette_texture = 0;
   GLuint prog_geometry = 0, prog_snapshot = 0, prog_clear = 0, prog_billboard = 0, prog_billboard_samples = 0;
+  // Multisampled snapshots (ImpostorConfig::snapshot_samples > 1): a scratch page, resolved.
+  GLuint prog_resolve = 0, scratch_color = 0, scratch_depth = 0, scratch_fbo = 0;
+  int snapshot_samples = 1;
   GLint loc_geometry_viewproj = -1;
   GLuint atlas = 0, atlas_depth = 0, atlas_fbo = 0;
   bool layered = false;  // one snapshot pass for all pages (depth is then a texture array too)
@@ -325,7 +345,7 @@ struct Renderer::Impl {
   } shade_geometry, shade_snapshot;
   struct BillboardProgram {
     GLuint prog = 0;
-    GLint viewproj = -1, eye = -1, up = -1, edges = -1, samples = -1, sample_pos = -1;
+    GLint viewproj = -1, eye = -1, up = -1, edges = -1, samples = -1, sample_pos = -1, taps = -1;
   } bb, bb_samples;  // averaged taps; per-sample coverage
   int sample_count = 0;  // of the sample positions last given to the impostor shader
 
@@ -400,7 +420,7 @@ void Renderer::Impl::take_snapshots(const FramePlan& plan) {
   if (due.empty()) return;
   // One pass for all pages when the vertex shader can choose the layer, else one per page; in a
   // pass, one draw per level, part and primitive.
-  if (!layered)
+  if (!layered || snapshot_samples > 1)
     std::sort(due.begin(), due.end(), [](const Due& a, const Due& b) {
       return a.page != b.page ? a.page < b.page : a.lod != b.lod ? a.lod < b.lod : a.part < b.part;
     });
@@ -421,7 +441,26 @@ void Renderer::Impl::take_snapshots(const FramePlan& plan) {
   glBindFramebuffer(GL_DRAW_FRAMEBUFFER, atlas_fbo);
   glViewport(0, 0, config.page_size, config.page_size);
   for (int k = 0; k < 4; ++k) glEnable(GL_CLIP_DISTANCE0 + k);
-  if (layered) {
+  if (snapshot_samples > 1) {
+    // Page by page: drawn multisampled into the scratch page, then resolved into the atlas.
+    for (std::size_t b = 0; b < due.size();) {
+      std::size_t e = b;
+      while (e < due.size() && due[e].page == due[b].page) ++e;
+      glBindFramebuffer(GL_DRAW_FRAMEBUFFER, scratch_fbo);
+      for (int k = 0; k < 4; ++k) glEnable(GL_CLIP_DISTANCE0 + k);
+      draw_snapshot_range(b, e - b);
+      for (int k = 0; k < 4; ++k) glDisable(GL_CLIP_DISTANCE0 + k);
+      glBindFramebuffer(GL_DRAW_FRAMEBUFFER, atlas_fbo);
+      if (!layered) glNamedFramebufferTextureLayer(atlas_fbo, GL_COLOR_ATTACHMENT0, atlas, 0, due[b].page);
+      glDisable(GL_DEPTH_TEST);
+      glUseProgram(prog_resolve);
+      glBindTextureUnit(3, scratch_color);
+      glBindVertexArray(lods[0].vao_snapshot);
+      glDrawArraysInstancedBaseInstance(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(e - b), static_cast<GLuint>(b));
+      glEnable(GL_DEPTH_TEST);
+      b = e;
+    }
+  } else if (layered) {
     draw_snapshot_range(0, due.size());
   } else {
     for (std::size_t b = 0; b < due.size();) {
@@ -459,6 +498,12 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   auto pc = program(d.layered ? layered(kClearVs) : std::string(kClearVs), kClearFs, "window clear shader");
   if (!pc) return pc.error();
   d.prog_clear = *pc;
+  d.snapshot_samples = std::clamp(config.snapshot_samples, 1, 16);
+  if (d.snapshot_samples > 1) {
+    auto pr = program(d.layered ? layered(kClearVs) : std::string(kClearVs), kResolveFs, "snapshot resolve shader");
+    if (!pr) return pr.error();
+    d.prog_resolve = *pr;
+  }
   auto pb = program(kBillboardVs, kBillboardFs, "impostor shader");
   if (!pb) return pb.error();
   d.prog_billboard = *pb;
@@ -474,7 +519,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
            glGetUniformLocation(prog, "u_up"),
            glGetUniformLocation(prog, "u_edges"),
            glGetUniformLocation(prog, "u_samples"),
-           glGetUniformLocation(prog, "u_sample_pos")};
+           glGetUniformLocation(prog, "u_sample_pos"),
+           glGetUniformLocation(prog, "u_taps")};
   }
   const GLint psize = static_cast<GLint>(model.palette.size());
   glProgramUniform1i(d.prog_geometry, glGetUniformLocation(d.prog_geometry, "u_palette_size"), psize);
@@ -560,7 +606,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     instance_attribs(l.vao_geometry, d.instances.id, sizeof(InstanceGpu), 5, 2);
     glCreateVertexArrays(1, &l.vao_snapshot);
     vertex_format(l.vao_snapshot, l.vbo, l.ibo);
-    instance_attribs(l.vao_snapshot, d.snapshots.id, sizeof(SnapshotGpu), 5, 8);
+    instance_attribs(l.vao_snapshot, d.snapshots.id, sizeof(SnapshotGpu), 5, 9);
     if (d.parts > 1) {
       const PartIndices& pi = model.part_indices(static_cast<int>(d.lods.size()));
       glCreateBuffers(1, &l.part_ibo);
@@ -568,7 +614,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
                            pi.indices.empty() ? nullptr : pi.indices.data(), 0);
       glCreateVertexArrays(1, &l.vao_part_snapshot);
       vertex_format(l.vao_part_snapshot, l.vbo, l.part_ibo);
-      instance_attribs(l.vao_part_snapshot, d.snapshots.id, sizeof(SnapshotGpu), 5, 8);
+      instance_attribs(l.vao_part_snapshot, d.snapshots.id, sizeof(SnapshotGpu), 5, 9);
     }
     d.lods.push_back(l);
   }
@@ -603,6 +649,22 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   }
   if (glCheckNamedFramebufferStatus(d.atlas_fbo, GL_DRAW_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
     return Error{"", "atlas", "the atlas framebuffer is incomplete"};
+  if (d.snapshot_samples > 1) {
+    GLint max_samples = 1;
+    glGetIntegerv(GL_MAX_SAMPLES, &max_samples);
+    d.snapshot_samples = std::min(d.snapshot_samples, std::max(1, static_cast<int>(max_samples)));
+    glProgramUniform1i(d.prog_resolve, glGetUniformLocation(d.prog_resolve, "u_samples"), d.snapshot_samples);
+    glCreateTextures(GL_TEXTURE_2D_MULTISAMPLE, 1, &d.scratch_color);
+    glTextureStorage2DMultisample(d.scratch_color, d.snapshot_samples, GL_RGBA8, config.page_size, config.page_size, GL_TRUE);
+    glCreateRenderbuffers(1, &d.scratch_depth);
+    glNamedRenderbufferStorageMultisample(d.scratch_depth, d.snapshot_samples, GL_DEPTH_COMPONENT24, config.page_size,
+                                          config.page_size);
+    glCreateFramebuffers(1, &d.scratch_fbo);
+    glNamedFramebufferTexture(d.scratch_fbo, GL_COLOR_ATTACHMENT0, d.scratch_color, 0);
+    glNamedFramebufferRenderbuffer(d.scratch_fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, d.scratch_depth);
+    if (glCheckNamedFramebufferStatus(d.scratch_fbo, GL_DRAW_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+      return Error{"", "atlas", "the multisampled snapshot framebuffer is incomplete"};
+  }
   if (GLenum e = glGetError(); e != GL_NO_ERROR)
     return Error{"", "GL", "error 0x" + std::to_string(e) + " while uploading the model"};
   return r;
@@ -633,6 +695,12 @@ Renderer::~Renderer() {
   else
     glDeleteRenderbuffers(1, &d.atlas_depth);
   glDeleteFramebuffers(1, &d.atlas_fbo);
+  if (d.scratch_fbo) {
+    glDeleteFramebuffers(1, &d.scratch_fbo);
+    glDeleteTextures(1, &d.scratch_color);
+    glDeleteRenderbuffers(1, &d.scratch_depth);
+    glDeleteProgram(d.prog_resolve);
+  }
   for (GLuint p : {d.prog_geometry, d.prog_snapshot, d.prog_clear, d.prog_billboard, d.prog_billboard_samples})
     glDeleteProgram(p);
 }
@@ -717,7 +785,10 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
       glProgramUniform2fv(bp.prog, bp.sample_pos, samples, pos.data());
       glProgramUniform1i(bp.prog, bp.samples, samples);
     }
-    if (mode != 3) glProgramUniform1i(bp.prog, bp.edges, mode);
+    if (mode != 3) {
+      glProgramUniform1i(bp.prog, bp.edges, mode);
+      glProgramUniform1i(bp.prog, bp.taps, d.snapshot_samples > 1 ? 1 : 4);
+    }
     if (mode == 2) {
       // The samples covered are wholly covered: alpha 1 in them (else the resolved pixel would
       // carry the coverage twice, alpha below the premultiplied colour: a bright fringe).

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <limits>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -34,8 +35,9 @@ glm::mat4 SnapshotCamera::view() const {
 glm::mat4 SnapshotCamera::projection() const {
   const float n = std::max(distance - radius, 0.01f * distance), f = distance + radius;
   if (perspective) {
-    const float s = half_size * n / distance;
-    return glm::frustum(-s, s, -s, s, n, f);
+    const float k = n / distance;
+    return glm::frustum((offset.x - half_size) * k, (offset.x + half_size) * k, (offset.y - half_size) * k,
+                        (offset.y + half_size) * k, n, f);
   }
   return glm::ortho(-half_size, half_size, -half_size, half_size, n, f);
 }
@@ -65,6 +67,64 @@ SnapshotCamera make_snapshot_camera(const glm::vec3& ta, const glm::vec3& eye, c
   c.ho = h / hl;
   c.uo = glm::cross(c.ho, c.vo);
   c.to = ta - c.distance * c.vo;
+  return c;
+}
+
+namespace {
+// The camera's right, up and forward axes (orthonormal, world).
+void camera_axes(const SceneCamera& camera, glm::vec3& right, glm::vec3& up, glm::vec3& fwd) {
+  const glm::mat4 v = camera.view();
+  right = glm::vec3(v[0][0], v[1][0], v[2][0]);
+  up = glm::vec3(v[0][1], v[1][1], v[2][1]);
+  fwd = -glm::vec3(v[0][2], v[1][2], v[2][2]);
+}
+// Half extent of the interval of tangents tan(a +- b) around tan(a), where a is the direction of
+// the centre (lateral x, depth z) and b the half angle the sphere subtends.
+float tangent_half_extent(float x, float z, float r) {
+  const float l = std::sqrt(x * x + z * z);
+  const float a = std::atan2(x, z), b = std::asin(std::min(r / l, 1.0f));
+  const float t = std::tan(a);
+  return std::max(std::tan(a + b) - t, t - std::tan(a - b));
+}
+}  // namespace
+
+float aligned_pixels(const SceneCamera& camera, const glm::vec3& centre, float radius) {
+  glm::vec3 right, up, fwd;
+  camera_axes(camera, right, up, fwd);
+  const glm::vec3 v = centre - camera.eye;
+  const float z = glm::dot(v, fwd);
+  if (!(z > 1.05f * radius) || !(glm::length(v) > 1.05f * radius)) return std::numeric_limits<float>::infinity();
+  const float ppm1 = camera.pixels_per_metre(1.0f);
+  const float hx = tangent_half_extent(glm::dot(v, right), z, radius);
+  const float hy = tangent_half_extent(glm::dot(v, up), z, radius);
+  return 2.0f * ppm1 * std::max(hx, hy);
+}
+
+std::optional<SnapshotCamera> make_aligned_snapshot_camera(const SceneCamera& camera, const glm::vec3& centre,
+                                                           float radius, int window_texels, float texels_per_pixel) {
+  if (!(texels_per_pixel > 0.0f) || aligned_pixels(camera, centre, radius) * texels_per_pixel > window_texels)
+    return std::nullopt;
+  glm::vec3 right, up, fwd;
+  camera_axes(camera, right, up, fwd);
+  const glm::vec3 v = centre - camera.eye;
+  const float z = glm::dot(v, fwd);
+  const float ppm = camera.pixels_per_metre(z);  // at the centre's depth
+  // The centre's projection in pixels from the lower-left corner of the viewport, snapped to the
+  // nearest pixel corner.
+  const glm::vec2 half_view(0.5f * static_cast<float>(camera.width), 0.5f * static_cast<float>(camera.height));
+  const glm::vec2 px = half_view + ppm * glm::vec2(glm::dot(v, right), glm::dot(v, up));
+  const glm::vec2 lateral = (glm::round(px) - half_view) / ppm;  // the window centre, metres from the axis
+  SnapshotCamera c;
+  c.perspective = true;
+  c.ho = right;
+  c.uo = up;
+  c.vo = fwd;
+  c.distance = z;
+  c.offset = lateral;
+  c.to = camera.eye;
+  c.ta = camera.eye + z * fwd + lateral.x * right + lateral.y * up;
+  c.radius = radius;
+  c.half_size = 0.5f * static_cast<float>(window_texels) / (texels_per_pixel * ppm);
   return c;
 }
 

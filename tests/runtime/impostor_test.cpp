@@ -21,6 +21,47 @@ void expect_vec3(glm::vec3 a, glm::vec3 b, float eps = 1e-6f) {
   EXPECT_NEAR(a.z, b.z, eps);
 }
 
+// An aligned snapshot camera cuts its window out of the scene camera's image: its centre lies on
+// a pixel corner, and any point lands in the window exactly where it lands on the screen, one
+// texel per pixel (half a texel with 2 texels per pixel).
+TEST(SnapshotCamera, AlignedWindowIsCutOutOfTheScreen) {
+  SceneCamera cam;
+  cam.width = 1280;
+  cam.height = 1024;
+  cam.eye = {3, 7, 18};
+  cam.target = {0, 1, 0};
+  const glm::mat4 screen = cam.projection() * cam.view();
+  auto pixel = [&](const glm::mat4& m, glm::vec3 p, glm::vec2 size) {
+    glm::vec4 c = m * glm::vec4(p, 1.0f);
+    return (glm::vec2(c) / c.w * 0.5f + 0.5f) * size;
+  };
+  const glm::vec3 centre(-4.3f, 0.9f, 2.2f);  // off the axis
+  for (float tpp : {1.0f, 2.0f}) {
+    auto a = make_aligned_snapshot_camera(cam, centre, 0.5f, 256, tpp);
+    ASSERT_TRUE(a.has_value());
+    EXPECT_TRUE(a->perspective);
+    const glm::vec2 c = pixel(screen, a->ta, glm::vec2(1280, 1024));
+    EXPECT_NEAR(c.x, std::round(c.x), 2e-3f);
+    EXPECT_NEAR(c.y, std::round(c.y), 2e-3f);
+    const glm::mat4 snap = a->projection() * a->view();
+    for (glm::vec3 d : {glm::vec3(0.3f, 0.8f, -0.4f), glm::vec3(-0.5f, -0.7f, 0.6f), glm::vec3(0.0f)}) {
+      const glm::vec2 on_screen = pixel(screen, centre + d, glm::vec2(1280, 1024)) - c;
+      const glm::vec2 in_window = pixel(snap, centre + d, glm::vec2(256)) - glm::vec2(128);
+      EXPECT_NEAR(in_window.x, tpp * on_screen.x, 2e-3f * tpp);
+      EXPECT_NEAR(in_window.y, tpp * on_screen.y, 2e-3f * tpp);
+    }
+  }
+  // The sphere's picture widens off the axis; a window too small for it, or an eye inside it,
+  // gives no aligned camera.
+  const float px = aligned_pixels(cam, centre, 1.0f);
+  const float depth = glm::dot(centre - cam.eye, glm::normalize(cam.target - cam.eye));
+  EXPECT_GT(px, 2.0f * cam.pixels_per_metre(depth));
+  EXPECT_FALSE(make_aligned_snapshot_camera(cam, centre, 1.0f, static_cast<int>(px) - 1, 1.0f).has_value());
+  EXPECT_TRUE(make_aligned_snapshot_camera(cam, centre, 1.0f, static_cast<int>(px) + 1, 1.0f).has_value());
+  EXPECT_FALSE(make_aligned_snapshot_camera(cam, cam.eye + glm::vec3(0.1f, 0, 0), 1.0f, 256, 1.0f).has_value());
+  EXPECT_TRUE(std::isinf(aligned_pixels(cam, cam.eye + 5.0f * glm::normalize(cam.eye - cam.target), 1.0f)));  // behind
+}
+
 TEST(SnapshotCamera, FrameFromEyeAndUp) {
   auto c = make_snapshot_camera({0, 1, 0}, {0, 1, 10}, {0, 1, 0}, 1.0f, 3.0f);
   expect_vec3(c.vo, {0, 0, -1});

@@ -45,6 +45,10 @@ struct SnapshotCamera {
   float radius = 1.0f;       // metres: the character's bounding sphere around Ta
   float distance = 2.0f;     // D, metres (orthographic: does not change the picture)
   bool perspective = false;
+  // Perspective only: the eye lies off the axis through ta, at ta - distance Vo - offset.x Ho -
+  // offset.y Uo (metres): an off-axis window, as cut out of the scene camera's image
+  // (make_aligned_snapshot_camera). Zero for make_snapshot_camera's cameras.
+  glm::vec2 offset{0.0f};
 
   glm::mat4 view() const;        // world -> camera (right-handed, looks along vo)
   glm::mat4 projection() const;  // [-h, h]^2 at Ta; near D - radius, far D + radius
@@ -55,6 +59,22 @@ struct SnapshotCamera {
 // to a horizontal Ho so the result is always a right-handed frame.
 SnapshotCamera make_snapshot_camera(const glm::vec3& ta, const glm::vec3& eye, const glm::vec3& up,
                                     float radius, float distance = 0.0f, bool perspective = false);
+
+// Diameter in pixels of the box around the projection of a sphere (`centre`, `radius`, world) in
+// `camera`'s image, centred on the centre's projection: what an aligned snapshot's window must
+// hold. Exact for the sphere (the tangent planes through the eye), so wider than 2 r ppm / depth
+// off the axis. Infinite when the eye is within 1.05 radius of the centre or behind it.
+float aligned_pixels(const SceneCamera& camera, const glm::vec3& centre, float radius);
+
+// A snapshot camera whose texels lie on the scene camera's pixels: its image plane is the
+// screen's (Ho, Uo, Vo = the camera's right, up, forward), its window of `window_texels` texels
+// is centred on the screen pixel corner nearest to the centre's projection, and
+// `texels_per_pixel` texels cover one pixel (1: texel for pixel; 2: 2x2 texels per pixel). Drawn
+// on the plane through ta parallel to the screen, such a snapshot is the geometry's own picture
+// at the moment it is taken, with no resampling. nullopt when the window cannot hold the sphere
+// at that scale (aligned_pixels * texels_per_pixel > window_texels) or the eye is inside it.
+std::optional<SnapshotCamera> make_aligned_snapshot_camera(const SceneCamera& camera, const glm::vec3& centre,
+                                                           float radius, int window_texels, float texels_per_pixel);
 
 // Section 5.2: the "view matrix" of a character = the snapshot camera's frame expressed in the
 // character's frame (camera x character): columns Ho, Uo, -Vo rotated by the inverse of the
