@@ -232,6 +232,20 @@ int run_demo(const std::string& dir, int frames, bool full) {
   for (const auto& r : scaling["scaling"])
     md << "| " << r["humans"].get<int>() << " | " << num(r["geometry_ms"].get<double>()) << " | "
        << num(r["impostor_ms"].get<double>()) << " | " << num(r["speedup"].get<double>()) << "x |\n";
+  // The same runs on their own, for anyone checking these numbers against `flow --json`.
+  {
+    const std::string base = "bodybuilder flow --model " + *glb + " --json -o out/check";
+    const int half = std::max(10, frames / 2);
+    md << "## Check it\n\nEach table comes from one `bodybuilder flow` run; the same runs on their own (timings vary by "
+       << "a few per cent from run to run on a shared machine):\n\n"
+       << "- main: `" << base << " --frames " << frames << "`\n"
+       << "- sweeps: `" << base << " --frames " << half << " --sweep posture` and `--sweep view`\n"
+       << "- part cards: `" << base << " --frames " << half << " --posture off --view 8 --impostor-parts`\n"
+       << "- refresh budget: `" << base << " --frames " << half << " --orbit 30 --humans " << kDemoBudgetHumans
+       << "`, then with `--refresh-budget " << kDemoRefreshBudget << "`\n"
+       << "- crowd sizes: `" << base << " --frames 2 --scaling --scaling-frames 3 --scaling-humans " << sc.scaling_list
+       << "`\n\n";
+  }
   md << "\n## Where to look\n\n- `default.glb`: the built-in body's LOD set (open it in any glTF viewer)\n"
      << "- `default_body.png`: the implicit skin, ray-cast\n"
      << "- `lods.png`: every level of detail, finest first; `proxies.png`: the hands at level 0 (left) and the "
