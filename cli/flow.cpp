@@ -55,6 +55,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   if (!s.perspective_snapshots) j["snapshot_camera"] = "orthographic";
   j["snapshot_grid"] = s.aligned_snapshots ? "pixels" : "free";
   j["snapshot_samples"] = s.snapshot_samples;
+  j["quad_fit"] = s.fit_quads ? "coverage" : "boxes";
   if (s.hold_poses) j["hold_poses"] = true;
   if (s.refresh_budget > 0) {
     j["refresh_budget"] = s.refresh_budget;
@@ -156,6 +157,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (a.snapshot_samples != 1 && a.snapshot_samples != 4)
     return fail("--snapshot-samples: expected 1 or 4 (got " + std::to_string(a.snapshot_samples) + ")");
   s.snapshot_samples = a.snapshot_samples;
+  if (a.quad_fit != "boxes" && a.quad_fit != "coverage")
+    return fail("--quad-fit: expected boxes or coverage (got \"" + a.quad_fit + "\")");
+  s.fit_quads = a.quad_fit == "coverage";
   s.distance_weighting = a.distance_weighting;
   s.orbit_deg_per_s = a.orbit;
   s.msaa = a.msaa;
@@ -349,6 +353,9 @@ void add_flow_command(CLI::App& app, int* status) {
       ->capture_default_str();
   cmd->add_option("--snapshot-samples", a->snapshot_samples,
                   "Samples per snapshot texel (4: multisampled like the scene, one tap per pixel; 1: four taps)")
+      ->capture_default_str();
+  cmd->add_option("--quad-fit", a->quad_fit,
+                  "Impostor quads: boxes (the projected pose and part boxes) or coverage (shrunk on the GPU to the snapshot's covered texels)")
       ->capture_default_str();
   cmd->add_option("--refresh-budget", a->refresh_budget,
                   "At most N impostors refreshed per frame, the stalest first (0: no limit; the paper's future work)")

@@ -49,6 +49,7 @@ struct FlowSettings {
   bool turn_limb_cards = false;             // ImpostorConfig::turn_limb_cards
   bool aligned_snapshots = false;           // ImpostorConfig::aligned_snapshots (texels on pixels)
   int snapshot_samples = 1;                 // ImpostorConfig::snapshot_samples
+  bool fit_quads = true;                    // ImpostorConfig::fit_quads_to_coverage
   int clip = -1;                 // -1: a clip named like "walk" if any, else 0
   float clip_speed_mps = 0;      // speed the clip walks at; 0: from the clip name "..._1.20mps" or none
   std::vector<int> keep_frames;  // measured frame indices whose images are returned
@@ -108,6 +109,7 @@ struct FlowArgs {
   std::string limb_cards = "fixed";
   std::string snapshot_grid = "free";
   int snapshot_samples = 1;
+  std::string quad_fit = "coverage";
   bool quiet = false;  // no summary on stdout (the demo prints its own)
   std::string scaling_list = "20,100,500,1000,2000,5000,10000";
   int scaling_frames = 10;

@@ -83,6 +83,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   config.turn_limb_cards = s.turn_limb_cards;
   config.aligned_snapshots = s.aligned_snapshots;
   config.snapshot_samples = s.snapshot_samples;
+  config.fit_quads_to_coverage = s.fit_quads;
   DrawOptions draw_options;
   draw_options.edges = s.impostor_edges == "coverage"  ? ImpostorEdges::kAlphaToCoverage
                        : s.impostor_edges == "test"    ? ImpostorEdges::kAlphaTest

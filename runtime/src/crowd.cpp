@@ -44,8 +44,13 @@ WindowRects window_rects(const SnapshotCamera& cam, int window_size, Corner&& co
 // What the GPU needs to draw one snapshot of `instance` with `cam` (its window centred on cam.ta,
 // the subject a sphere of `radius` metres) into `win` of a `page`-pixel atlas page, clearing `rect`
 // of the window.
+// `quad` is the part of the window the impostor's quad shows; `slot` its fitted rectangle's index,
+// found when `fit`, widened by the reach of the impostor shader's taps at `texels_per_pixel`
+// (the window's texels per screen pixel at the subject's depth): its pixels half a pixel outside,
+// taps 0.375 pixel further, bilinear one texel more.
 SnapshotGpu snapshot_gpu(const InstanceGpu& instance, const SnapshotCamera& cam, float radius, const AtlasWindow& win,
-                         float page, const glm::vec4& rect) {
+                         float page, const glm::vec4& rect, const glm::vec4& quad, int slot, bool fit,
+                         float texels_per_pixel) {
   SnapshotGpu s;
   s.instance = instance;
   s.ho_half = glm::vec4(cam.ho, cam.half_size);
@@ -57,6 +62,10 @@ SnapshotGpu snapshot_gpu(const InstanceGpu& instance, const SnapshotCamera& cam,
   s.window = glm::vec4(-1.0f + (2.0f * win.x + win.size) / page, -1.0f + (2.0f * win.y + win.size) / page, half,
                        static_cast<float>(win.page));
   s.rect = rect;
+  s.quad = quad;
+  s.part.y = static_cast<float>(slot);
+  s.part.z = fit ? 1.0f : 0.0f;
+  s.part.w = std::ceil(1.0f + 0.875f * texels_per_pixel);
   return s;
 }
 
@@ -118,11 +127,13 @@ float rect_texels(const glm::vec4& rect, int size) {
 // facing the eye, or (aligned snapshots) parallel to the screen, whose axes are the camera's
 // `right` and `up`.
 template <typename State>
-BillboardGpu billboard(const glm::vec3& ta, const State& cs, float page, const glm::vec3& right, const glm::vec3& up) {
+BillboardGpu billboard(const glm::vec3& ta, const State& cs, float page, int slot, const glm::vec3& right,
+                       const glm::vec3& up) {
   const AtlasWindow& win = cs.window;
   BillboardGpu b{glm::vec4(ta, cs.half_size),
                  glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
-                 glm::vec4(static_cast<float>(win.page), 0.0f, 0.0f, 0.0f), cs.rect};
+                 glm::vec4(static_cast<float>(win.page), static_cast<float>(slot), cs.fitted ? 1.0f : 0.0f, 0.0f),
+                 cs.rect};
   if (cs.aligned) {
     b.ta_half = glm::vec4(ta + cs.offset.x * right + cs.offset.y * up, cs.half_size);
     b.axis_x = glm::vec4(right * cs.half_size, 1.0f);
@@ -238,6 +249,9 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
   const auto pal = m.baked_palette();
   const int np = static_cast<int>(m.palette.size());
   const float page = static_cast<float>(atlas_.page_size());
+  auto slot_of = [&](const AtlasWindow& w) {
+    return coverage_slot(w, atlas_.page_size(), config_.windows.size[config_.windows.count - 1]);
+  };
   const int lods = static_cast<int>(m.lods.size());
   // LOD of each window class (section 4.3: the snapshot uses the level that matches the window).
   std::array<int, 8> window_lod{};
@@ -352,6 +366,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
           next.posture = posture;
           next.half_size = sc.half_size;
           next.aligned = aligned.has_value();
+          next.fitted = config_.fit_quads_to_coverage;
           next.offset = glm::vec2(glm::dot(sc.ta - ta, cam_right), glm::dot(sc.ta - ta, cam_up));
           next.rect = glm::vec4(-1, -1, 1, 1);
           glm::vec4 snap_rect = next.rect;
@@ -387,9 +402,12 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
           }
           const int slod = config_.snapshot_lod_from_screen ? std::min(lod_for(pixels, camera.height), lods - 1)
                                                             : window_lod[win.size_class];
+          // Window texels per screen pixel at Ta's depth.
+          const float tpp = static_cast<float>(win.size) * std::max(depth, 1e-3f) / (2.0f * sc.half_size * ppm1);
           if (must || !budget) {
             cs = next;
-            plan_.snapshots[slod].push_back(snapshot_gpu(inst, sc, radius, win, page, snap_rect));
+            plan_.snapshots[slod].push_back(
+                snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect, slot_of(win), next.fitted, tpp));
             ++st.snapshots;
             st.snapshot_triangles += m.lods[slod].triangle_count();
             --budget_left_;
@@ -397,12 +415,14 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
             // Stale: drawn from its old snapshot unless the budget reaches it below.
             pending_.push_back(PendingRefresh{staleness, static_cast<std::uint32_t>(i),
                                               static_cast<std::uint32_t>(plan_.billboards.size()), slod, next,
-                                              snapshot_gpu(inst, sc, radius, win, page, snap_rect),
-                                              billboard(ta, next, page, cam_right, cam_up), m.lods[slod].triangle_count()});
+                                              snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect,
+                                                           slot_of(win), next.fitted, tpp),
+                                              billboard(ta, next, page, slot_of(win), cam_right, cam_up),
+                                              m.lods[slod].triangle_count()});
           }
         }
         // The old snapshot is drawn where the character stands now (Ta moves with it).
-        plan_.billboards.push_back(billboard(ta, cs, page, cam_right, cam_up));
+        plan_.billboards.push_back(billboard(ta, cs, page, slot_of(win), cam_right, cam_up));
         st.quad_texels += rect_texels(cs.rect, win.size);
         ++st.impostors;
         ++st.impostors_per_window[win.size_class];
@@ -584,10 +604,12 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
     const BodyPart& bp = parts[p];
     PartCache& pc = pcs[p];
     const AtlasWindow& win = pc.window;
+    const int slot = coverage_slot(win, atlas_.page_size(), config_.windows.size[config_.windows.count - 1]);
     auto card = [&](const PartCache& c, const glm::mat3& t) {
       return BillboardGpu{glm::vec4(glm::vec3(bone[p] * glm::vec4(c.centre, 1.0f)), c.half_size),
                           glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
-                          glm::vec4(static_cast<float>(win.page), 0.0f, 0.0f, 0.0f), c.rect,
+                          glm::vec4(static_cast<float>(win.page), static_cast<float>(slot), c.fitted ? 1.0f : 0.0f, 0.0f),
+                          c.rect,
                           glm::vec4(t * glm::vec3(bone[p] * glm::vec4(c.axis_x, 0.0f)), 1.0f),
                           glm::vec4(t * glm::vec3(bone[p] * glm::vec4(c.axis_y, 0.0f)), 1.0f)};
     };
@@ -612,6 +634,7 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
       next.normal = glm::vec3(inv * glm::vec4(los, 0.0f));
       next.half_size = cam.half_size;
       next.posture = posture;
+      next.fitted = config_.fit_quads_to_coverage;
       next.rect = glm::vec4(-1, -1, 1, 1);
       glm::vec4 snap_rect = next.rect;
       if (config_.tight_quads) {
@@ -624,8 +647,10 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
         next.rect = rr.quad;
         snap_rect = rr.snapshot;
       }
-      SnapshotGpu s = snapshot_gpu(inst, cam, r, win, page, snap_rect);
-      s.part = glm::vec4(static_cast<float>(p), 0.0f, 0.0f, 0.0f);
+      const float part_depth = std::max(glm::dot(centre[p] - camera.eye, fwd), 1e-3f);
+      SnapshotGpu s = snapshot_gpu(inst, cam, r, win, page, snap_rect, next.rect, slot, next.fitted,
+                                   static_cast<float>(win.size) * part_depth / (2.0f * cam.half_size * ppm1));
+      s.part.x = static_cast<float>(p);
       std::size_t tris = 0;
       for (std::size_t k = 0; k < prims; ++k) tris += pi.ranges[k * parts_ + p].count / 3;
       if (budget && !must[p]) {

@@ -93,6 +93,12 @@ struct ImpostorConfig {
   // geometry does). Between refreshes it gains little: at 8 degrees whole impostors 12.8 against
   // 12.5 dB, part cards 25.4 against 25.3 dB. Off by default.
   bool aligned_snapshots = false;
+  // Quads fitted to the coverage: after each snapshot the GPU finds the rectangle of the window
+  // that its covered texels fill (plus two texels for the filter taps), and the impostor's quad
+  // shrinks to it. The planner's quad comes from boxes (the pose's, the body parts'), which are
+  // loose: a box's picture is wider than the limb in it. One quad still, so no extra triangles;
+  // FrameStats::quad_texels still counts the planner's quads.
+  bool fit_quads_to_coverage = true;
   // Samples per texel of the snapshots (1 or 4). 4: drawn multisampled into a scratch page and
   // resolved into the atlas, so alpha holds each texel's coverage as the geometry's multisampled
   // pixels do; the impostor shader then takes one tap per pixel. 1: single-sampled, the impostor
@@ -131,6 +137,12 @@ struct ImpostorConfig {
   bool turn_limb_cards = false;
 };
 inline constexpr float kLimbElongation = 2.0f, kLimbFlatness = 1.7f;
+// Index of `w`'s fitted rectangle (ImpostorConfig::fit_quads_to_coverage) in the renderer's list:
+// one slot per smallest-window square of every page.
+inline int coverage_slot(const AtlasWindow& w, int page_size, int smallest_window) {
+  const int per_row = page_size / smallest_window;
+  return (w.page * per_row + w.y / smallest_window) * per_row + w.x / smallest_window;
+}
 
 // Per-instance data the GPU reads (16-byte aligned, plain floats).
 struct InstanceGpu {
@@ -140,7 +152,7 @@ struct InstanceGpu {
 struct BillboardGpu {
   glm::vec4 ta_half;       // world Ta xyz (a part card: its centre), half size (metres)
   glm::vec4 uv_rect;       // u0, v0, u1, v1 of the window in its page
-  glm::vec4 layer;         // page (x); y, z, w unused
+  glm::vec4 layer;         // page (x), coverage slot (y), 1 to fit the quad to the coverage (z); w unused
   glm::vec4 rect;          // used part of the window, in [-1, 1]^2 of the window: x0, y0, x1, y1
   // Part cards (w = 1): the card's half axes in world space (window x and y, metres); w = 0: a
   // quad facing the eye.
@@ -156,7 +168,9 @@ struct SnapshotGpu {
   glm::vec4 rect;          // part of the window cleared and drawn, in [-1, 1]^2 of the window:
                            // x0, y0, x1, y1 (the quad's part and a margin)
   glm::vec4 offset{0.0f};  // SnapshotCamera::offset (x, y), metres; z, w unused
-  glm::vec4 part{-1.0f};   // x: body part drawn (-1: the whole character); y, z, w unused
+  glm::vec4 part{-1.0f};   // x: body part drawn (-1: the whole character); y: coverage slot,
+                           // z: 1 to find the covered rectangle (fit_quads_to_coverage); w unused
+  glm::vec4 quad{-1.0f, -1.0f, 1.0f, 1.0f};  // the planner's quad in the window (searched for coverage)
 };
 
 struct FrameStats {
@@ -218,6 +232,7 @@ class FramePlanner {
     // the quad is then drawn parallel to the screen (`aligned`), else facing the eye.
     glm::vec2 offset{0.0f};
     bool aligned = false;
+    bool fitted = false;  // its quad is fitted to the coverage (found with the snapshot)
     glm::vec4 rect{-1, -1, 1, 1};  // part of the window the last snapshot used
     AtlasWindow window;
     bool valid = false;
@@ -230,6 +245,7 @@ class FramePlanner {
     float half_size = 0.0f;
     glm::vec4 rect{-1, -1, 1, 1};
     AtlasWindow window;
+    bool fitted = false;
   };
   // A stale impostor's refresh, held back until the frame's budget is shared out.
   struct PendingRefresh {

@@ -68,6 +68,10 @@ class Renderer {
 
   // Copies page `page` of the atlas (RGBA8, premultiplied, rows bottom to top) for inspection.
   std::vector<std::uint8_t> read_atlas_page(int page) const;
+  // The rectangle (window units: x0, y0, x1, y1) that the last snapshot in the window of coverage
+  // slot `slot` (BillboardGpu::layer.y) covers, widened by its taps' reach, as found on the GPU
+  // (ImpostorConfig::fit_quads_to_coverage); x0 > x1 when nothing is covered. For inspection.
+  glm::vec4 coverage_rect(int slot) const;
   const Model& model() const;
 
  private:
