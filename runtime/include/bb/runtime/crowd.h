@@ -97,7 +97,10 @@ struct ImpostorConfig {
   // that its covered texels fill (plus two texels for the filter taps), and the impostor's quad
   // shrinks to it. The planner's quad comes from boxes (the pose's, the body parts'), which are
   // loose: a box's picture is wider than the limb in it. One quad still, so no extra triangles;
-  // FrameStats::quad_texels still counts the planner's quads.
+  // FrameStats::quad_texels still counts the planner's quads. Flow test bed (llvmpipe, alternating
+  // pairs): impostor frame time -3 % at 8 degrees and -16 % at 17 on our humans, -16 % on the Fox
+  // (2.2x -> 2.7x at 8 degrees), +7 % when every impostor is refreshed (the pass reads every texel
+  // of the new snapshots' quads); same frames to one level.
   bool fit_quads_to_coverage = true;
   // Samples per texel of the snapshots (1 or 4). 4: drawn multisampled into a scratch page and
   // resolved into the atlas, so alpha holds each texel's coverage as the geometry's multisampled
