@@ -596,8 +596,10 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     glProgramUniform1f(d.prog_coverage, glGetUniformLocation(d.prog_coverage, "u_page"), static_cast<float>(config.page_size));
     const int per_row = config.page_size / std::max(1, config.windows.size[std::max(0, config.windows.count - 1)]);
     glCreateBuffers(1, &d.coverage);
-    glNamedBufferStorage(d.coverage,
-                         static_cast<GLsizeiptr>(std::max(1, config.max_pages) * per_row * per_row) * 16, nullptr, 0);
+    // Until a window's first fitted snapshot: the whole window (the planner's quad is drawn).
+    const std::vector<glm::vec4> whole(static_cast<std::size_t>(std::max(1, config.max_pages) * per_row * per_row),
+                                       glm::vec4(-1.0f, -1.0f, 1.0f, 1.0f));
+    glNamedBufferStorage(d.coverage, static_cast<GLsizeiptr>(whole.size() * sizeof(glm::vec4)), whole.data(), 0);
   }
   auto pb = program(kBillboardVs, kBillboardFs, "impostor shader");
   if (!pb) return pb.error();
