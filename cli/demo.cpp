@@ -236,8 +236,8 @@ int run_demo(const std::string& dir, int frames, bool full) {
   {
     const std::string base = "bodybuilder flow --model " + *glb + " --json -o out/check";
     const int half = std::max(10, frames / 2);
-    md << "## Check it\n\nEach table comes from one `bodybuilder flow` run; the same runs on their own (timings vary by "
-       << "a few per cent from run to run on a shared machine):\n\n"
+    md << "\n## Check it\n\nEach table comes from one `bodybuilder flow` run; the same runs on their own (timings "
+       << "vary from run to run: up to ~15 % on a busy 2-core machine):\n\n"
        << "- main: `" << base << " --frames " << frames << "`\n"
        << "- sweeps: `" << base << " --frames " << half << " --sweep posture` and `--sweep view`\n"
        << "- part cards: `" << base << " --frames " << half << " --posture off --view 8 --impostor-parts`\n"
