@@ -46,8 +46,8 @@ WindowRects window_rects(const SnapshotCamera& cam, int window_size, Corner&& co
 // of the window.
 // `quad` is the part of the window the impostor's quad shows; `slot` its fitted rectangle's index,
 // found when `fit`, widened by the reach of the impostor shader's taps at `texels_per_pixel`
-// (the window's texels per screen pixel at the subject's depth): its pixels half a pixel outside,
-// taps 0.375 pixel further, bilinear one texel more.
+// (the window's texels per screen pixel at the subject's depth): half a texel for the bilinear filter,
+// then half a pixel and the taps' 0.375-pixel offset (tighter margins drop coverage: tests).
 SnapshotGpu snapshot_gpu(const InstanceGpu& instance, const SnapshotCamera& cam, float radius, const AtlasWindow& win,
                          float page, const glm::vec4& rect, const glm::vec4& quad, int slot, bool fit,
                          float texels_per_pixel) {
@@ -65,7 +65,7 @@ SnapshotGpu snapshot_gpu(const InstanceGpu& instance, const SnapshotCamera& cam,
   s.quad = quad;
   s.part.y = static_cast<float>(slot);
   s.part.z = fit ? 1.0f : 0.0f;
-  s.part.w = std::ceil(1.0f + 0.875f * texels_per_pixel);
+  s.part.w = std::ceil(0.5f + 0.875f * texels_per_pixel);
   return s;
 }
 
