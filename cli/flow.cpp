@@ -73,6 +73,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["geometry_triangles_per_frame"] = r.geometry_triangles;
   j["snapshot_triangles_per_frame"] = r.snapshot_triangles;
   j["quad_texels_per_frame"] = r.quad_texels;
+  if (r.drawn_quad_texels > 0) j["drawn_quad_texels_per_frame"] = r.drawn_quad_texels;
   j["atlas_pages_used"] = r.atlas_pages;
   j["atlas_pixel_use"] = r.atlas_pixel_use;
   return j;

@@ -82,6 +82,7 @@ struct FlowResult {
   } interior, edge, one_only;
   double geometry_triangles = 0, snapshot_triangles = 0;  // mean per frame
   double quad_texels = 0;  // mean per frame: window texels under the impostor quads (their fill)
+  double drawn_quad_texels = 0;  // the same as drawn (fitted to the coverage), mean over compared frames
   double atlas_pixel_use = 0;
   int atlas_pages = 0;
   std::string device;

@@ -140,7 +140,8 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
 
   double g_ms = 0, i_ms = 0, refresh = 0, psnr_sum = 0, ssim_sum = 0, tri_g = 0, tri_s = 0, atlas_use = 0, cards = 0;
   double psnr_min = std::numeric_limits<double>::infinity();
-  double deferred = 0, quad_texels = 0;
+  double deferred = 0, quad_texels = 0, drawn_texels = 0;
+  int drawn_frames = 0;
   std::vector<double> g_times, i_times;  // per measured frame, ms
   int compared = 0, atlas_pages = 0;
   double class_se[3] = {0, 0, 0}, class_n[3] = {0, 0, 0};
@@ -200,6 +201,10 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
         atlas_pages = std::max(atlas_pages, plan.stats.atlas_pages_used);
       }
       if (compare || keep) imgs.impostor = (*target_i)->read_rgba();
+      if (compare) {  // after the timed frame: reads the fitted rectangles back
+        drawn_texels += (*renderer)->drawn_quad_texels(plan);
+        ++drawn_frames;
+      }
     }
     if (compare) {
       // Where the error is: interior, edges (partly covered), covered in one image only.
@@ -250,6 +255,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   out.part_cards = cards / n;
   out.deferred_refreshes = deferred / n;
   out.quad_texels = quad_texels / n;
+  out.drawn_quad_texels = drawn_frames ? drawn_texels / drawn_frames : 0.0;
   out.geometry_spread = spread(g_times);
   out.impostor_spread = spread(i_times);
   out.atlas_pixel_use = atlas_use / n;

@@ -929,6 +929,21 @@ glm::vec4 Renderer::coverage_rect(int slot) const {
   return r;
 }
 
+double Renderer::drawn_quad_texels(const FramePlan& plan) const {
+  const float page = static_cast<float>(impl_->config.page_size);
+  double texels = 0;
+  for (const BillboardGpu& b : plan.billboards) {
+    glm::vec4 r = b.rect;
+    if (b.layer.z > 0.5f) {
+      const glm::vec4 f = coverage_rect(static_cast<int>(b.layer.y));
+      r = glm::vec4(glm::max(glm::vec2(r), glm::vec2(f)), glm::min(glm::vec2(r.z, r.w), glm::vec2(f.z, f.w)));
+    }
+    const double half = 0.5 * static_cast<double>(b.uv_rect.z - b.uv_rect.x) * page;  // window size / 2
+    if (r.z > r.x && r.w > r.y) texels += (r.z - r.x) * half * (r.w - r.y) * half;
+  }
+  return texels;
+}
+
 Result<std::unique_ptr<OffscreenTarget>> OffscreenTarget::create(int width, int height, int samples) {
   if (width <= 0 || height <= 0 || width > 16384 || height > 16384)
     return Error{"", "target", "size " + std::to_string(width) + "x" + std::to_string(height) + " is out of range"};

@@ -152,6 +152,10 @@ TEST(FlowCli, ExactSnapshotsCopyTheGeometryFrame) {
   auto jf = nlohmann::json::parse(last_json_line(free.text));
   auto je = nlohmann::json::parse(last_json_line(exact.text));
   EXPECT_EQ(jf["snapshot_grid"], "free");
+  // The quads as drawn, fitted to the coverage (the default), are smaller than the planner's.
+  std::printf("quad texels: planned %.0f, drawn %.0f\n", jf["quad_texels_per_frame"].get<double>(),
+              jf["drawn_quad_texels_per_frame"].get<double>());
+  EXPECT_LT(jf["drawn_quad_texels_per_frame"].get<double>(), 0.97 * jf["quad_texels_per_frame"].get<double>());
   EXPECT_EQ(je["snapshot_grid"], "pixels");
   EXPECT_EQ(je["snapshot_samples"], 4);
   EXPECT_DOUBLE_EQ(je["refresh_fraction"].get<double>(), 1.0);

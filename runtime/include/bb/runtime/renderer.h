@@ -72,6 +72,10 @@ class Renderer {
   // slot `slot` (BillboardGpu::layer.y) covers, widened by its taps' reach, as found on the GPU
   // (ImpostorConfig::fit_quads_to_coverage); x0 > x1 when nothing is covered. For inspection.
   glm::vec4 coverage_rect(int slot) const;
+  // Window texels under the impostor quads of `plan` as drawn: the planner's quads
+  // (FrameStats::quad_texels), narrowed to the coverage rectangles where they are fitted. Reads
+  // the rectangles back from the GPU (waits for it): for reports, outside timed frames.
+  double drawn_quad_texels(const FramePlan& plan) const;
   const Model& model() const;
 
  private:
