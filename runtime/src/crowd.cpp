@@ -142,11 +142,10 @@ BillboardGpu billboard(const glm::vec3& ta, const State& cs, float page, int slo
   return b;
 }
 
-// The camera's right and up axes (unit, world).
-void camera_right_up(const SceneCamera& camera, glm::vec3& right, glm::vec3& up) {
-  const glm::mat4 v = camera.view();
-  right = glm::vec3(v[0][0], v[1][0], v[2][0]);
-  up = glm::vec3(v[0][1], v[1][1], v[2][1]);
+// Window texels per screen pixel for a `window_size`-texel window spanning 2 `half_size` metres at
+// `depth` metres from the eye (`ppm1`: the camera's pixels per metre at depth 1).
+float window_texels_per_pixel(int window_size, float half_size, float depth, float ppm1) {
+  return static_cast<float>(window_size) * std::max(depth, 1e-3f) / (2.0f * half_size * ppm1);
 }
 
 // How far past the posture threshold: the largest relative change of the four squared
@@ -184,6 +183,10 @@ FramePlanner::FramePlanner(const Model& model, const ImpostorConfig& config)
 
 void FramePlanner::invalidate() {
   for (auto& c : cache_) c.valid = false;
+}
+
+int FramePlanner::coverage_slot_of(const AtlasWindow& w) const {
+  return coverage_slot(w, atlas_.page_size(), config_.windows.size[config_.windows.count - 1]);
 }
 
 int FramePlanner::lod_for(float pixels, int viewport_height) const {
@@ -236,9 +239,8 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
     planes[2 * i + 1] = glm::vec4(vp[0][3] - vp[0][i], vp[1][3] - vp[1][i], vp[2][3] - vp[2][i], vp[3][3] - vp[3][i]);
   }
   for (auto& p : planes) p /= glm::length(glm::vec3(p));
-  const glm::vec3 fwd = glm::normalize(camera.target - camera.eye);
-  glm::vec3 cam_right, cam_up;
-  camera_right_up(camera, cam_right, cam_up);
+  glm::vec3 cam_right, cam_up, fwd;
+  camera_axes(camera, cam_right, cam_up, fwd);
   const float ppm1 = camera.pixels_per_metre(1.0f);
   const bool impostor_mode = mode != RenderMode::kGeometry;
   const CacheConfig& cc = config_.cache;
@@ -249,9 +251,6 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
   const auto pal = m.baked_palette();
   const int np = static_cast<int>(m.palette.size());
   const float page = static_cast<float>(atlas_.page_size());
-  auto slot_of = [&](const AtlasWindow& w) {
-    return coverage_slot(w, atlas_.page_size(), config_.windows.size[config_.windows.count - 1]);
-  };
   const int lods = static_cast<int>(m.lods.size());
   // LOD of each window class (section 4.3: the snapshot uses the level that matches the window).
   std::array<int, 8> window_lod{};
@@ -355,6 +354,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
           ++st.new_snapshots;
         }
         const AtlasWindow& win = cs.window;
+        const int slot = coverage_slot_of(win);
         if (refresh) {
           std::optional<SnapshotCamera> aligned;
           if (config_.aligned_snapshots)
@@ -402,12 +402,11 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
           }
           const int slod = config_.snapshot_lod_from_screen ? std::min(lod_for(pixels, camera.height), lods - 1)
                                                             : window_lod[win.size_class];
-          // Window texels per screen pixel at Ta's depth.
-          const float tpp = static_cast<float>(win.size) * std::max(depth, 1e-3f) / (2.0f * sc.half_size * ppm1);
+          const float tpp = window_texels_per_pixel(win.size, sc.half_size, depth, ppm1);
           if (must || !budget) {
             cs = next;
             plan_.snapshots[slod].push_back(
-                snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect, slot_of(win), next.fitted, tpp));
+                snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect, slot, next.fitted, tpp));
             ++st.snapshots;
             st.snapshot_triangles += m.lods[slod].triangle_count();
             --budget_left_;
@@ -416,13 +415,13 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
             pending_.push_back(PendingRefresh{staleness, static_cast<std::uint32_t>(i),
                                               static_cast<std::uint32_t>(plan_.billboards.size()), slod, next,
                                               snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect,
-                                                           slot_of(win), next.fitted, tpp),
-                                              billboard(ta, next, page, slot_of(win), cam_right, cam_up),
+                                                           slot, next.fitted, tpp),
+                                              billboard(ta, next, page, slot, cam_right, cam_up),
                                               m.lods[slod].triangle_count()});
           }
         }
         // The old snapshot is drawn where the character stands now (Ta moves with it).
-        plan_.billboards.push_back(billboard(ta, cs, page, slot_of(win), cam_right, cam_up));
+        plan_.billboards.push_back(billboard(ta, cs, page, slot, cam_right, cam_up));
         st.quad_texels += rect_texels(cs.rect, win.size);
         ++st.impostors;
         ++st.impostors_per_window[win.size_class];
@@ -498,6 +497,7 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
   const glm::mat4 place = placement(ch);
   std::array<glm::mat4, kMaxBodyParts> bone;
   std::array<glm::vec3, kMaxBodyParts> centre;
+  std::array<float, kMaxBodyParts> depth;  // of the centre along the view direction
   std::array<bool, kMaxBodyParts> due;
   // Limb cards that turn about their axis (ImpostorConfig::turn_limb_cards), and by how much.
   std::array<bool, kMaxBodyParts> turns;
@@ -512,8 +512,8 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
   for (int p = 0; p < count; ++p) {
     bone[p] = place * palette_matrix(pal, np, bc, f0, f1, blend, parts[p].bone);
     centre[p] = glm::vec3(bone[p] * glm::vec4(parts[p].centre, 1.0f));
-    const float depth = glm::dot(centre[p] - camera.eye, fwd);
-    float px = 2.0f * parts[p].radius * sc * ppm1 / std::max(depth, 1e-3f);
+    depth[p] = glm::dot(centre[p] - camera.eye, fwd);
+    float px = 2.0f * parts[p].radius * sc * ppm1 / std::max(depth[p], 1e-3f);
     if (config_.aligned_snapshots) {
       const float a = aligned_pixels(camera, centre[p], parts[p].radius * sc);
       if (std::isfinite(a)) px = a;
@@ -604,7 +604,7 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
     const BodyPart& bp = parts[p];
     PartCache& pc = pcs[p];
     const AtlasWindow& win = pc.window;
-    const int slot = coverage_slot(win, atlas_.page_size(), config_.windows.size[config_.windows.count - 1]);
+    const int slot = coverage_slot_of(win);
     auto card = [&](const PartCache& c, const glm::mat3& t) {
       return BillboardGpu{glm::vec4(glm::vec3(bone[p] * glm::vec4(c.centre, 1.0f)), c.half_size),
                           glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
@@ -647,9 +647,8 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
         next.rect = rr.quad;
         snap_rect = rr.snapshot;
       }
-      const float part_depth = std::max(glm::dot(centre[p] - camera.eye, fwd), 1e-3f);
       SnapshotGpu s = snapshot_gpu(inst, cam, r, win, page, snap_rect, next.rect, slot, next.fitted,
-                                   static_cast<float>(win.size) * part_depth / (2.0f * cam.half_size * ppm1));
+                                   window_texels_per_pixel(win.size, cam.half_size, depth[p], ppm1));
       s.part.x = static_cast<float>(p);
       std::size_t tris = 0;
       for (std::size_t k = 0; k < prims; ++k) tris += pi.ranges[k * parts_ + p].count / 3;

@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdlib>
 #include <cstring>
+#include <initializer_list>
 #include <cstdio>
 #include <string>
 #include <utility>
@@ -331,17 +332,12 @@ Result<GLuint> compile(GLenum type, const std::string& src, const char* what) {
   return s;
 }
 
-Result<GLuint> program(const std::string& vs, const std::string& fs, const char* what) {
-  auto v = compile(GL_VERTEX_SHADER, vs, what);
-  if (!v) return v.error();
-  auto f = compile(GL_FRAGMENT_SHADER, fs, what);
-  if (!f) return f.error();
+// Links the compiled `shaders` into a program (and deletes them).
+Result<GLuint> link(std::initializer_list<GLuint> shaders, const char* what) {
   GLuint p = glCreateProgram();
-  glAttachShader(p, *v);
-  glAttachShader(p, *f);
+  for (GLuint sh : shaders) glAttachShader(p, sh);
   glLinkProgram(p);
-  glDeleteShader(*v);
-  glDeleteShader(*f);
+  for (GLuint sh : shaders) glDeleteShader(sh);
   GLint ok = 0;
   glGetProgramiv(p, GL_LINK_STATUS, &ok);
   if (!ok) {
@@ -351,6 +347,17 @@ Result<GLuint> program(const std::string& vs, const std::string& fs, const char*
     return Error{"", what, std::string("program does not link: ") + log};
   }
   return p;
+}
+
+Result<GLuint> program(const std::string& vs, const std::string& fs, const char* what) {
+  auto v = compile(GL_VERTEX_SHADER, vs, what);
+  if (!v) return v.error();
+  auto f = compile(GL_FRAGMENT_SHADER, fs, what);
+  if (!f) {
+    glDeleteShader(*v);
+    return f.error();
+  }
+  return link({*v, *f}, what);
 }
 
 // A buffer that grows and is rewritten every frame.
@@ -515,9 +522,8 @@ void Renderer::Impl::take_snapshots(const FramePlan& plan) {
       std::size_t e = b;
       while (e < due.size() && due[e].page == due[b].page) ++e;
       glBindFramebuffer(GL_DRAW_FRAMEBUFFER, scratch_fbo);
-      for (int k = 0; k < 4; ++k) glEnable(GL_CLIP_DISTANCE0 + k);
       draw_snapshot_range(b, e - b);
-      for (int k = 0; k < 4; ++k) glDisable(GL_CLIP_DISTANCE0 + k);
+      // The resolve pass reuses the clear's vertex shader, whose clip distances keep every vertex.
       glBindFramebuffer(GL_DRAW_FRAMEBUFFER, atlas_fbo);
       if (!layered) glNamedFramebufferTextureLayer(atlas_fbo, GL_COLOR_ATTACHMENT0, atlas, 0, due[b].page);
       glDisable(GL_DEPTH_TEST);
@@ -586,13 +592,9 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   {
     auto cs = compile(GL_COMPUTE_SHADER, kCoverageCs, "coverage shader");
     if (!cs) return cs.error();
-    d.prog_coverage = glCreateProgram();
-    glAttachShader(d.prog_coverage, *cs);
-    glLinkProgram(d.prog_coverage);
-    glDeleteShader(*cs);
-    GLint ok = 0;
-    glGetProgramiv(d.prog_coverage, GL_LINK_STATUS, &ok);
-    if (!ok) return Error{"", "coverage shader", "program does not link"};
+    auto pcov = link({*cs}, "coverage shader");
+    if (!pcov) return pcov.error();
+    d.prog_coverage = *pcov;
     glProgramUniform1f(d.prog_coverage, glGetUniformLocation(d.prog_coverage, "u_page"), static_cast<float>(config.page_size));
     const int per_row = config.page_size / std::max(1, config.windows.size[std::max(0, config.windows.count - 1)]);
     glCreateBuffers(1, &d.coverage);
@@ -931,11 +933,18 @@ glm::vec4 Renderer::coverage_rect(int slot) const {
 
 double Renderer::drawn_quad_texels(const FramePlan& plan) const {
   const float page = static_cast<float>(impl_->config.page_size);
+  // One read of the rectangles the plan's fitted quads use.
+  int slots = 0;
+  for (const BillboardGpu& b : plan.billboards)
+    if (b.layer.z > 0.5f) slots = std::max(slots, static_cast<int>(b.layer.y) + 1);
+  std::vector<glm::vec4> covered(static_cast<std::size_t>(slots));
+  if (slots > 0)
+    glGetNamedBufferSubData(impl_->coverage, 0, static_cast<GLsizeiptr>(covered.size() * sizeof(glm::vec4)), covered.data());
   double texels = 0;
   for (const BillboardGpu& b : plan.billboards) {
     glm::vec4 r = b.rect;
     if (b.layer.z > 0.5f) {
-      const glm::vec4 f = coverage_rect(static_cast<int>(b.layer.y));
+      const glm::vec4 f = covered[static_cast<std::size_t>(b.layer.y)];
       r = glm::vec4(glm::max(glm::vec2(r), glm::vec2(f)), glm::min(glm::vec2(r.z, r.w), glm::vec2(f.z, f.w)));
     }
     const double half = 0.5 * static_cast<double>(b.uv_rect.z - b.uv_rect.x) * page;  // window size / 2

@@ -70,14 +70,14 @@ SnapshotCamera make_snapshot_camera(const glm::vec3& ta, const glm::vec3& eye, c
   return c;
 }
 
-namespace {
-// The camera's right, up and forward axes (orthonormal, world).
-void camera_axes(const SceneCamera& camera, glm::vec3& right, glm::vec3& up, glm::vec3& fwd) {
+void camera_axes(const SceneCamera& camera, glm::vec3& right, glm::vec3& up, glm::vec3& forward) {
   const glm::mat4 v = camera.view();
   right = glm::vec3(v[0][0], v[1][0], v[2][0]);
   up = glm::vec3(v[0][1], v[1][1], v[2][1]);
-  fwd = -glm::vec3(v[0][2], v[1][2], v[2][2]);
+  forward = -glm::vec3(v[0][2], v[1][2], v[2][2]);
 }
+
+namespace {
 // Half extent of the interval of tangents tan(a +- b) around tan(a), where a is the direction of
 // the centre (lateral x, depth z) and b the half angle the sphere subtends.
 float tangent_half_extent(float x, float z, float r) {

@@ -225,6 +225,8 @@ class FramePlanner {
   // LOD level the geometry path uses for an on-screen diameter of `pixels` in a viewport
   // `viewport_height` pixels high (MSFT_screencoverage: diameter / height >= coverage).
   int lod_for(float pixels, int viewport_height) const;
+  // Window `w`'s index in the renderer's list of coverage rectangles (coverage_slot).
+  int coverage_slot_of(const AtlasWindow& w) const;
 
  private:
   struct CacheState {

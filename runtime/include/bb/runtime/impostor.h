@@ -60,6 +60,9 @@ struct SnapshotCamera {
 SnapshotCamera make_snapshot_camera(const glm::vec3& ta, const glm::vec3& eye, const glm::vec3& up,
                                     float radius, float distance = 0.0f, bool perspective = false);
 
+// The camera's right, up and forward axes (orthonormal, world; forward looks from eye to target).
+void camera_axes(const SceneCamera& camera, glm::vec3& right, glm::vec3& up, glm::vec3& forward);
+
 // Diameter in pixels of the box around the projection of a sphere (`centre`, `radius`, world) in
 // `camera`'s image, centred on the centre's projection: what an aligned snapshot's window must
 // hold. Exact for the sphere (the tangent planes through the eye), so wider than 2 r ppm / depth
