@@ -39,10 +39,20 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   auto r3 = [](float v) { return std::round(static_cast<double>(v) * 1000.0) / 1000.0; };
   j["posture"] = s.posture_test ? ordered_json(r3(s.posture_threshold)) : ordered_json("off");
   j["view_deg"] = s.view_test ? ordered_json(r3(s.view_deg)) : ordered_json("off");
+  j["planner_threads"] = s.planner_threads;
   j["geometry_ms"] = r.geometry_ms;
   j["impostor_ms"] = r.impostor_ms;
   auto spread = [](const FlowResult::Spread& x) { return ordered_json{{"p95", x.p95}, {"max", x.max}, {"sd", x.sd}}; };
   j["frame_ms_spread"] = {{"geometry", spread(r.geometry_spread)}, {"impostor", spread(r.impostor_spread)}};
+  auto split_ms = [](const FlowResult::Split& x) {
+    return ordered_json{{"plan", x.plan}, {"submit", x.submit}, {"finish", x.finish}};
+  };
+  j["frame_ms_split"] = {{"geometry", split_ms(r.geometry_split)}, {"impostor", split_ms(r.impostor_split)}};
+  auto gpu_ms = [](const runtime::StageTimes& g) {
+    return ordered_json{{"snapshots", g.snapshots}, {"coverage", g.coverage}, {"geometry", g.geometry}, {"impostors", g.impostors}};
+  };
+  if (r.geometry_gpu.valid || r.impostor_gpu.valid)
+    j["gpu_ms_stages"] = {{"geometry", gpu_ms(r.geometry_gpu)}, {"impostor", gpu_ms(r.impostor_gpu)}};
   j["ratio"] = r.ratio;
   j["speedup"] = r.ratio > 0 ? 1.0 / r.ratio : 0.0;
   j["refresh_fraction"] = r.refresh_fraction;
@@ -161,6 +171,8 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (a.quad_fit != "boxes" && a.quad_fit != "coverage")
     return fail("--quad-fit: expected boxes or coverage (got \"" + a.quad_fit + "\")");
   s.fit_quads = a.quad_fit == "coverage";
+  s.time_stages = a.gpu_stages;
+  s.planner_threads = static_cast<unsigned>(a.planner_threads);
   s.distance_weighting = a.distance_weighting;
   s.orbit_deg_per_s = a.orbit;
   s.msaa = a.msaa;
@@ -358,6 +370,11 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--quad-fit", a->quad_fit,
                   "Impostor quads: boxes (the projected pose and part boxes) or coverage (shrunk on the GPU to the snapshot's covered texels)")
       ->capture_default_str();
+  cmd->add_option("--planner-threads", a->planner_threads,
+                  "Threads planning each frame of crowds of 512 and more (0: one per hardware thread; the plan is the same)")
+      ->capture_default_str()->check(CLI::Range(0, 256));
+  cmd->add_flag("--gpu-stages", a->gpu_stages,
+                "Also time the renderer's stages on the GPU (snapshots, coverage, geometry, impostors; gpu_ms_stages in the report)");
   cmd->add_option("--refresh-budget", a->refresh_budget,
                   "At most N impostors refreshed per frame, the stalest first (0: no limit; the paper's future work)")
       ->capture_default_str();

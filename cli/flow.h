@@ -13,6 +13,7 @@
 
 #include "bb/runtime/crowd.h"
 #include "bb/runtime/model.h"
+#include "bb/runtime/renderer.h"
 #include "bb/result.h"
 #include <nlohmann/json.hpp>
 
@@ -50,6 +51,8 @@ struct FlowSettings {
   bool aligned_snapshots = false;           // ImpostorConfig::aligned_snapshots (texels on pixels)
   int snapshot_samples = 1;                 // ImpostorConfig::snapshot_samples
   bool fit_quads = true;                    // ImpostorConfig::fit_quads_to_coverage
+  bool time_stages = false;                 // GPU timestamps between the renderer's stages (gpu_ms_stages)
+  unsigned planner_threads = 0;             // ImpostorConfig::planner_threads (0: every hardware thread)
   int clip = -1;                 // -1: a clip named like "walk" if any, else 0
   float clip_speed_mps = 0;      // speed the clip walks at; 0: from the clip name "..._1.20mps" or none
   std::vector<int> keep_frames;  // measured frame indices whose images are returned
@@ -68,6 +71,15 @@ struct FlowResult {
   struct Spread {
     double p95 = 0, max = 0, sd = 0;
   } geometry_spread, impostor_spread;
+  // Where a path's frame time goes, mean ms per frame: the planner (CPU), the renderer's
+  // submission (CPU, GL calls until Renderer::draw returns) and the wait for the GPU to finish
+  // (glFinish). They add up to geometry_ms / impostor_ms.
+  struct Split {
+    double plan = 0, submit = 0, finish = 0;
+  } geometry_split, impostor_split;
+  // GPU time of the renderer's stages (Renderer::stage_times), mean ms per frame over the
+  // measured frames of each path (geometry: its geometry stage; impostors: the other three).
+  runtime::StageTimes geometry_gpu, impostor_gpu;
   double deferred_refreshes = 0;            // mean stale impostors held back per frame by the budget
   int snapshots_max = 0;                    // most impostors (part cards: cards) refreshed in one measured frame
   double ratio = 0;                         // impostor / geometry
@@ -111,6 +123,8 @@ struct FlowArgs {
   std::string snapshot_grid = "free";
   int snapshot_samples = 1;
   std::string quad_fit = "coverage";
+  bool gpu_stages = false;
+  int planner_threads = 0;
   bool quiet = false;  // no summary on stdout (the demo prints its own)
   std::string scaling_list = "20,100,500,1000,2000,5000,10000";
   int scaling_frames = 10;

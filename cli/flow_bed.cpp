@@ -84,7 +84,9 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   config.aligned_snapshots = s.aligned_snapshots;
   config.snapshot_samples = s.snapshot_samples;
   config.fit_quads_to_coverage = s.fit_quads;
+  config.planner_threads = s.planner_threads;
   DrawOptions draw_options;
+  draw_options.time_stages = s.time_stages;
   draw_options.edges = s.impostor_edges == "coverage"  ? ImpostorEdges::kAlphaToCoverage
                        : s.impostor_edges == "test"    ? ImpostorEdges::kAlphaTest
                        : s.impostor_edges == "samples" ? ImpostorEdges::kSamples
@@ -171,9 +173,25 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
       gpu_finish();
       auto t0 = Clock::now();
       const FramePlan& plan = planner.plan(crowd, cam, t, mode);
+      auto t1 = Clock::now();
       (*renderer)->draw(plan, draw_options);
+      auto t2 = Clock::now();
       gpu_finish();
-      *ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+      auto t3 = Clock::now();
+      *ms = std::chrono::duration<double, std::milli>(t3 - t0).count();
+      if (measured) {
+        FlowResult::Split& sp = mode == RenderMode::kGeometry ? out.geometry_split : out.impostor_split;
+        sp.plan += std::chrono::duration<double, std::milli>(t1 - t0).count();
+        sp.submit += std::chrono::duration<double, std::milli>(t2 - t1).count();
+        sp.finish += std::chrono::duration<double, std::milli>(t3 - t2).count();
+        const StageTimes g = (*renderer)->stage_times();  // after the timed frame
+        StageTimes& acc = mode == RenderMode::kGeometry ? out.geometry_gpu : out.impostor_gpu;
+        acc.snapshots += g.snapshots;
+        acc.coverage += g.coverage;
+        acc.geometry += g.geometry;
+        acc.impostors += g.impostors;
+        acc.valid = g.valid;
+      }
       return plan;
     };
     double ms = 0;
@@ -256,6 +274,17 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   out.deferred_refreshes = deferred / n;
   out.quad_texels = quad_texels / n;
   out.drawn_quad_texels = drawn_frames ? drawn_texels / drawn_frames : 0.0;
+  for (FlowResult::Split* sp : {&out.geometry_split, &out.impostor_split}) {
+    sp->plan /= n;
+    sp->submit /= n;
+    sp->finish /= n;
+  }
+  for (StageTimes* g : {&out.geometry_gpu, &out.impostor_gpu}) {
+    g->snapshots /= n;
+    g->coverage /= n;
+    g->geometry /= n;
+    g->impostors /= n;
+  }
   out.geometry_spread = spread(g_times);
   out.impostor_spread = spread(i_times);
   out.atlas_pixel_use = atlas_use / n;

@@ -1,10 +1,15 @@
-// bench_flow MODEL.glb OUT_DIR [frames] [scaling sizes]: the flow test bed's main run (20 humans,
-// both paths), both sweeps and the crowd sizes, on the runtime alone, so that it can run on a
-// machine that has a GPU but not the offline pipeline's libraries. Writes OUT_DIR/*.json|csv|png.
+// The flow test bed on the runtime alone, so that it can run on a machine that has a GPU but not
+// the offline pipeline's libraries:
+//   bench_flow MODEL.glb OUT_DIR [frames] [scaling sizes]: the main run (20 humans, both paths),
+//     both sweeps and the crowd sizes; writes OUT_DIR/*.json|csv|png.
+//   bench_flow flow --model MODEL.glb [any flag of `bodybuilder flow`]: that command, as is.
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
+#include <iostream>
 #include <string>
 
+#include "commands.h"
 #include "flow.h"
 
 namespace bb::cli {
@@ -15,6 +20,19 @@ Result<std::string> default_flow_model(const std::string&) {
 }  // namespace bb::cli
 
 int main(int argc, char** argv) {
+  if (argc >= 2 && std::strcmp(argv[1], "flow") == 0) {
+    CLI::App app{"bench_flow: the flow test bed on the runtime alone", "bench_flow"};
+    app.require_subcommand(1);
+    int status = 0;
+    for (const auto& e : bb::cli::command_registry()) e.add(app, &status);  // flow.cpp's `flow`
+    try {
+      app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+      int rc = app.exit(e, std::cout, std::cerr);
+      return e.get_exit_code() == 0 ? 0 : (rc == 0 ? 2 : rc);
+    }
+    return status;
+  }
   if (argc < 3) {
     std::fprintf(stderr, "usage: bench_flow MODEL.glb OUT_DIR [frames] [sizes, e.g. 20,100,1000,10000]\n");
     return 2;

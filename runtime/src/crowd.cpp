@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <thread>
 
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "bb/runtime/animation.h"
+#include "worker_pool.h"
 
 namespace bb::runtime {
 
@@ -159,7 +161,47 @@ float posture_staleness(const std::array<float, 4>& stored, const std::array<flo
   return worst / std::max(threshold, 1e-6f);
 }
 
+// Adds the counts of `b` (a chunk of the crowd) to `a`.
+void add_stats(FrameStats& a, const FrameStats& b) {
+  a.culled += b.culled;
+  a.geometry += b.geometry;
+  a.impostors += b.impostors;
+  a.snapshots += b.snapshots;
+  a.part_cards += b.part_cards;
+  a.part_snapshots += b.part_snapshots;
+  a.atlas_fallbacks += b.atlas_fallbacks;
+  a.posture_refreshes += b.posture_refreshes;
+  a.view_refreshes += b.view_refreshes;
+  a.window_refreshes += b.window_refreshes;
+  a.new_snapshots += b.new_snapshots;
+  a.deferred_refreshes += b.deferred_refreshes;
+  for (std::size_t k = 0; k < a.geometry_per_lod.size(); ++k) a.geometry_per_lod[k] += b.geometry_per_lod[k];
+  for (std::size_t k = 0; k < a.impostors_per_window.size(); ++k) a.impostors_per_window[k] += b.impostors_per_window[k];
+  a.geometry_triangles += b.geometry_triangles;
+  a.snapshot_triangles += b.snapshot_triangles;
+  a.quad_texels += b.quad_texels;
+}
+
 }  // namespace
+
+void FramePlanner::Chunk::clear(std::size_t lods) {
+  geometry.resize(lods);
+  snapshots.resize(lods);
+  for (auto& g : geometry) g.clear();
+  for (auto& v : snapshots) v.clear();
+  billboards.clear();
+  pending.clear();
+  deferred.clear();
+  st = FrameStats{};
+  budget_used = 0;
+}
+
+unsigned FramePlanner::planner_threads() {
+  unsigned want = config_.planner_threads;
+  if (want == 0) want = std::max(1u, std::thread::hardware_concurrency());
+  if (want > 1 && (!pool_ || pool_->size() != want)) pool_ = std::make_shared<WorkerPool>(want);
+  return want;
+}
 
 glm::vec3 character_ta(const Model& m, const Character& ch, float time) {
   const auto baked = m.baked_clips();
@@ -195,6 +237,198 @@ int FramePlanner::lod_for(float pixels, int viewport_height) const {
   for (int l = 0; l < n - 1; ++l)
     if (coverage >= model_->lods[l].screen_coverage) return l;
   return n - 1;
+}
+
+void FramePlanner::plan_character(std::size_t i, const Character& ch, const FrameSetup& fs, const Out& out) {
+  const Model& m = *model_;
+  const SceneCamera& camera = fs.camera;
+  const auto& planes = fs.planes;
+  const glm::vec3 &cam_right = fs.cam_right, &cam_up = fs.cam_up, &fwd = fs.fwd;
+  const float ppm1 = fs.ppm1, cos_view = fs.cos_view, switch_px = fs.switch_px, page = fs.page, time = fs.time;
+  const bool impostor_mode = fs.impostor_mode, budget = fs.budget;
+  const RenderMode mode = fs.mode;
+  const CacheConfig& cc = config_.cache;
+  const auto baked = m.baked_clips();
+  const auto parts = m.body_parts();
+  const auto pal = m.baked_palette();
+  const int np = static_cast<int>(m.palette.size());
+  const int lods = static_cast<int>(m.lods.size());
+  const auto& window_lod = fs.window_lod;
+  FrameStats& st = *out.st;
+    const float radius = m.radius * ch.scale;
+  const float cy = std::cos(ch.yaw), sy = std::sin(ch.yaw);
+  // Animation state: baked frames around the character's clip time.
+  const int clip = m.clips.empty() ? 0 : std::clamp(ch.clip, 0, static_cast<int>(m.clips.size()) - 1);
+  const BakedClip& bc = baked[clip];
+  const float t = clip_time(ch.phase + ch.speed * time, m.clip_duration(clip), true);
+  const float fx = t * bc.rate;
+  const int f0 = std::min(static_cast<int>(fx), bc.frame_count - 1);
+  const int f1 = std::min(f0 + 1, bc.frame_count - 1);
+  const float blend = f1 > f0 ? fx - static_cast<float>(f0) : 0.0f;
+  const glm::vec2 travel = bc.root_offset[f0] + (bc.root_offset[f1] - bc.root_offset[f0]) * blend;
+  const glm::vec3 ta_local = (m.ta + glm::vec3(travel.x, 0.0f, travel.y)) * ch.scale;
+  const glm::vec3 ta = ch.position + glm::vec3(cy * ta_local.x + sy * ta_local.z, ta_local.y, -sy * ta_local.x + cy * ta_local.z);
+  bool outside = false;
+  for (const auto& p : planes) outside |= glm::dot(glm::vec3(p), ta) + p.w < -radius;
+  if (outside) {
+    ++st.culled;
+    return;
+  }
+  InstanceGpu inst{glm::vec4(ch.position, ch.yaw),
+                   glm::vec4(ch.scale, static_cast<float>(bc.first_row + f0), static_cast<float>(bc.first_row + f1), blend)};
+  const float depth = glm::dot(ta - camera.eye, fwd);
+  const float pixels = 2.0f * radius * ppm1 / std::max(depth, 1e-3f);
+
+  bool as_geometry = !impostor_mode || (mode == RenderMode::kAuto && pixels > switch_px);
+  if (!as_geometry && parts_ > 1) {
+    as_geometry = !plan_parts(i, ch, bc, f0, f1, blend, inst, ta, radius, pixels, camera, st);
+  } else if (!as_geometry) {
+    CacheState& cs = cache_[i];
+    // Aligned snapshots hold the sphere's whole picture (wider off the axis) at the exact scale.
+    float need = pixels;
+    if (config_.aligned_snapshots) {
+      const float a = aligned_pixels(camera, ta, radius);
+      if (std::isfinite(a)) need = a;
+    }
+    const int wclass = choose_window(config_.windows, need * config_.texels_per_pixel);
+    if (out.deferred && (!cs.window.valid() || cs.window.size_class != wclass)) {
+      out.deferred->push_back(static_cast<std::uint32_t>(i));  // the atlas is served in order, after
+      return;
+    }
+    bool refresh = !cs.valid;
+    if (!refresh && cs.window.size_class != wclass) {
+      refresh = true;
+      ++st.window_refreshes;
+    }
+    if (cs.window.valid() && cs.window.size_class != wclass) {
+      atlas_.release(cs.window);
+      cs.window = AtlasWindow{};
+    }
+    if (!cs.window.valid()) {
+      auto w = atlas_.allocate(wclass);
+      if (!w) {
+        ++st.atlas_fallbacks;
+        cs.valid = false;
+        as_geometry = true;
+      } else {
+        cs.window = *w;
+        refresh = true;
+      }
+    }
+    if (!as_geometry) {
+      SnapshotCamera sc = make_snapshot_camera(ta, camera.eye, camera.up, radius,
+                                                     config_.snapshot_distance > 0 ? config_.snapshot_distance * ch.scale : 0.0f,
+                                                     config_.perspective_snapshots);
+      if (config_.texel_per_pixel && sc.perspective)
+        sc.half_size = std::max(sc.half_size, static_cast<float>(config_.windows.size[wclass]) * sc.distance / (2.0f * ppm1));
+      // The view test's frame is section 4.2's (the line of sight to Ta) in either case.
+      const glm::mat3 view = view_rotation(sc, ch.yaw);
+
+      // Posture distances of the current frame (squared, model space, scaled).
+      const std::array<float, 4> posture = posture_at(bc, f0, f1, blend);
+      const bool must = refresh;  // no usable snapshot: refreshed whatever the budget
+      float staleness = 0.0f;
+      if (!refresh) {
+        const float w = distance_weight(cc, glm::distance(ta, camera.eye));
+        if (cc.view_test) {
+          const float thr = std::min(glm::radians(cc.view_threshold_deg) * w, 3.14159265f);
+          const float cthr = w == 1.0f ? cos_view : std::cos(thr);
+          const float c = rotation_cosine(cs.view, view);
+          if (c < cthr) {
+            refresh = true;
+            ++st.view_refreshes;
+            if (budget) staleness = std::acos(std::clamp(c, -1.0f, 1.0f)) / std::max(thr, 1e-6f);
+          }
+        }
+        if (cc.posture_test && (budget || !refresh) && posture_changed(cs.posture, posture, cc.posture_threshold * w)) {
+          if (!refresh) ++st.posture_refreshes;
+          refresh = true;
+          if (budget) staleness = std::max(staleness, posture_staleness(cs.posture, posture, cc.posture_threshold * w));
+        }
+      } else if (!cs.valid) {
+        ++st.new_snapshots;
+      }
+      const AtlasWindow& win = cs.window;
+      const int slot = coverage_slot_of(win);
+      if (refresh) {
+        std::optional<SnapshotCamera> aligned;
+        if (config_.aligned_snapshots)
+          aligned = make_aligned_snapshot_camera(camera, ta, radius, win.size, config_.texels_per_pixel);
+        if (aligned) sc = *aligned;
+        CacheState next = cs;
+        next.valid = true;
+        next.view = view;
+        next.posture = posture;
+        next.half_size = sc.half_size;
+        next.aligned = aligned.has_value();
+        next.fitted = config_.fit_quads_to_coverage;
+        next.offset = glm::vec2(glm::dot(sc.ta - ta, cam_right), glm::dot(sc.ta - ta, cam_up));
+        next.rect = glm::vec4(-1, -1, 1, 1);
+        glm::vec4 snap_rect = next.rect;
+        if (config_.tight_quads) {
+          // This frame's pose box.
+          const auto& b0 = bc.bounds[f0];
+          const auto& b1 = bc.bounds[f1];
+          const glm::vec3 lo = glm::min(b0[0], b1[0]) * ch.scale, hi = glm::max(b0[1], b1[1]) * ch.scale;
+          WindowRects r = window_rects(sc, win.size, [&](int k) {
+            const glm::vec3 p((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
+            return ch.position + glm::vec3(cy * p.x + sy * p.z, p.y, -sy * p.x + cy * p.z) - sc.ta;
+          });
+          if (parts.size() > 1) {
+            // Tighter: the union of the body parts' boxes, each carried by its bone (a limb's
+            // box lies along the limb), within the pose's box.
+            const glm::mat4 place = placement(ch);
+            glm::vec4 quad(1e30f, 1e30f, -1e30f, -1e30f), clear = quad;
+            for (const BodyPart& bp : parts) {
+              const glm::mat4 bone = place * palette_matrix(pal, np, bc, f0, f1, blend, bp.bone);
+              const WindowRects rr = window_rects(sc, win.size, [&](int k) {
+                const glm::vec3 c((k & 1) ? bp.box_max.x : bp.box_min.x, (k & 2) ? bp.box_max.y : bp.box_min.y,
+                                  (k & 4) ? bp.box_max.z : bp.box_min.z);
+                return glm::vec3(bone * glm::vec4(c, 1.0f)) - sc.ta;
+              });
+              quad = rect_union(quad, rr.quad);
+              clear = rect_union(clear, rr.snapshot);
+            }
+            r.quad = rect_intersection(r.quad, quad);
+            r.snapshot = rect_intersection(r.snapshot, clear);
+          }
+          next.rect = r.quad;
+          snap_rect = r.snapshot;
+        }
+        const int slod = config_.snapshot_lod_from_screen ? std::min(lod_for(pixels, camera.height), lods - 1)
+                                                          : window_lod[win.size_class];
+        const float tpp = window_texels_per_pixel(win.size, sc.half_size, depth, ppm1);
+        if (must || !budget) {
+          cs = next;
+          (*out.snapshots)[slod].push_back(
+              snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect, slot, next.fitted, tpp));
+          ++st.snapshots;
+          st.snapshot_triangles += m.lods[slod].triangle_count();
+          ++*out.budget_used;
+        } else {
+          // Stale: drawn from its old snapshot unless the budget reaches it below.
+          out.pending->push_back(PendingRefresh{staleness, static_cast<std::uint32_t>(i),
+                                            static_cast<std::uint32_t>(out.billboards->size()), slod, next,
+                                            snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect,
+                                                         slot, next.fitted, tpp),
+                                            billboard(ta, next, page, slot, cam_right, cam_up),
+                                            m.lods[slod].triangle_count()});
+        }
+      }
+      // The old snapshot is drawn where the character stands now (Ta moves with it).
+      out.billboards->push_back(billboard(ta, cs, page, slot, cam_right, cam_up));
+      st.quad_texels += rect_texels(cs.rect, win.size);
+      ++st.impostors;
+      ++st.impostors_per_window[win.size_class];
+    }
+  }
+  if (as_geometry) {
+    const int lod = std::min(lod_for(pixels, camera.height), lods - 1);
+    (*out.geometry)[lod].push_back(inst);
+    ++st.geometry;
+    ++st.geometry_per_lod[std::min(lod, 7)];
+    st.geometry_triangles += m.lods[lod].triangle_count();
+  }
 }
 
 const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode) {
@@ -246,12 +480,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
   const CacheConfig& cc = config_.cache;
   const float cos_view = std::cos(glm::radians(cc.view_threshold_deg));
   const float switch_px = static_cast<float>(config_.windows.size[0]) * config_.geometry_switch;
-  const auto baked = m.baked_clips();
-  const auto parts = m.body_parts();
-  const auto pal = m.baked_palette();
-  const int np = static_cast<int>(m.palette.size());
   const float page = static_cast<float>(atlas_.page_size());
-  const int lods = static_cast<int>(m.lods.size());
   // LOD of each window class (section 4.3: the snapshot uses the level that matches the window).
   std::array<int, 8> window_lod{};
   for (int w = 0; w < config_.windows.count; ++w) window_lod[w] = lod_for(static_cast<float>(config_.windows.size[w]), camera.height);
@@ -262,179 +491,49 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
   pending_parts_.clear();
   if (parts_ > 1) refreshed_.assign(n, 0);
 
-  for (std::size_t i = 0; i < n; ++i) {
-    const Character& ch = crowd[i];
-    const float radius = m.radius * ch.scale;
-    const float cy = std::cos(ch.yaw), sy = std::sin(ch.yaw);
-    // Animation state: baked frames around the character's clip time.
-    const int clip = m.clips.empty() ? 0 : std::clamp(ch.clip, 0, static_cast<int>(m.clips.size()) - 1);
-    const BakedClip& bc = baked[clip];
-    const float t = clip_time(ch.phase + ch.speed * time, m.clip_duration(clip), true);
-    const float fx = t * bc.rate;
-    const int f0 = std::min(static_cast<int>(fx), bc.frame_count - 1);
-    const int f1 = std::min(f0 + 1, bc.frame_count - 1);
-    const float blend = f1 > f0 ? fx - static_cast<float>(f0) : 0.0f;
-    const glm::vec2 travel = bc.root_offset[f0] + (bc.root_offset[f1] - bc.root_offset[f0]) * blend;
-    const glm::vec3 ta_local = (m.ta + glm::vec3(travel.x, 0.0f, travel.y)) * ch.scale;
-    const glm::vec3 ta = ch.position + glm::vec3(cy * ta_local.x + sy * ta_local.z, ta_local.y, -sy * ta_local.x + cy * ta_local.z);
-    bool outside = false;
-    for (const auto& p : planes) outside |= glm::dot(glm::vec3(p), ta) + p.w < -radius;
-    if (outside) {
-      ++st.culled;
-      continue;
+  FrameSetup fs{camera, planes, cam_right, cam_up, fwd, ppm1, cos_view, switch_px, page, time, impostor_mode, budget, mode, window_lod};
+  int budget_used = 0;
+  const Out serial{&plan_.geometry, &plan_.snapshots, &plan_.billboards, &pending_, &st, &budget_used, nullptr};
+  const unsigned threads = planner_threads();
+  if (parts_ == 1 && n >= kParallelCharacters) {
+    // Characters in chunks on the worker pool, each chunk into its own lists, joined in crowd
+    // order; characters whose atlas window must be allocated or changed are then planned one by
+    // one in crowd order (the allocator is shared, and its choices must not depend on the
+    // threads), after the others. So the plan is the same whatever the number of threads.
+    const std::size_t chunks = std::min<std::size_t>(n / (kParallelCharacters / 4), 4 * std::size_t{threads});
+    if (chunks_.size() < chunks) chunks_.resize(chunks);
+    auto run_chunk = [&](std::size_t c) {
+      Chunk& k = chunks_[c];
+      k.clear(m.lods.size());
+      const Out o{&k.geometry, &k.snapshots, &k.billboards, &k.pending, &k.st, &k.budget_used, &k.deferred};
+      for (std::size_t i = n * c / chunks, e = n * (c + 1) / chunks; i < e; ++i) plan_character(i, crowd[i], fs, o);
+    };
+    if (threads > 1) {
+      pool_->run(chunks, run_chunk);
+    } else {
+      for (std::size_t c = 0; c < chunks; ++c) run_chunk(c);
     }
-    InstanceGpu inst{glm::vec4(ch.position, ch.yaw),
-                     glm::vec4(ch.scale, static_cast<float>(bc.first_row + f0), static_cast<float>(bc.first_row + f1), blend)};
-    const float depth = glm::dot(ta - camera.eye, fwd);
-    const float pixels = 2.0f * radius * ppm1 / std::max(depth, 1e-3f);
-
-    bool as_geometry = !impostor_mode || (mode == RenderMode::kAuto && pixels > switch_px);
-    if (!as_geometry && parts_ > 1) {
-      as_geometry = !plan_parts(i, ch, bc, f0, f1, blend, inst, ta, radius, pixels, camera, st);
-    } else if (!as_geometry) {
-      CacheState& cs = cache_[i];
-      // Aligned snapshots hold the sphere's whole picture (wider off the axis) at the exact scale.
-      float need = pixels;
-      if (config_.aligned_snapshots) {
-        const float a = aligned_pixels(camera, ta, radius);
-        if (std::isfinite(a)) need = a;
+    for (std::size_t c = 0; c < chunks; ++c) {
+      Chunk& k = chunks_[c];
+      const auto base = static_cast<std::uint32_t>(plan_.billboards.size());
+      for (std::size_t l = 0; l < plan_.geometry.size(); ++l) {
+        plan_.geometry[l].insert(plan_.geometry[l].end(), k.geometry[l].begin(), k.geometry[l].end());
+        plan_.snapshots[l].insert(plan_.snapshots[l].end(), k.snapshots[l].begin(), k.snapshots[l].end());
       }
-      const int wclass = choose_window(config_.windows, need * config_.texels_per_pixel);
-      bool refresh = !cs.valid;
-      if (!refresh && cs.window.size_class != wclass) {
-        refresh = true;
-        ++st.window_refreshes;
+      plan_.billboards.insert(plan_.billboards.end(), k.billboards.begin(), k.billboards.end());
+      for (PendingRefresh& r : k.pending) {
+        r.billboard += base;
+        pending_.push_back(r);
       }
-      if (cs.window.valid() && cs.window.size_class != wclass) {
-        atlas_.release(cs.window);
-        cs.window = AtlasWindow{};
-      }
-      if (!cs.window.valid()) {
-        auto w = atlas_.allocate(wclass);
-        if (!w) {
-          ++st.atlas_fallbacks;
-          cs.valid = false;
-          as_geometry = true;
-        } else {
-          cs.window = *w;
-          refresh = true;
-        }
-      }
-      if (!as_geometry) {
-        SnapshotCamera sc = make_snapshot_camera(ta, camera.eye, camera.up, radius,
-                                                       config_.snapshot_distance > 0 ? config_.snapshot_distance * ch.scale : 0.0f,
-                                                       config_.perspective_snapshots);
-        if (config_.texel_per_pixel && sc.perspective)
-          sc.half_size = std::max(sc.half_size, static_cast<float>(config_.windows.size[wclass]) * sc.distance / (2.0f * ppm1));
-        // The view test's frame is section 4.2's (the line of sight to Ta) in either case.
-        const glm::mat3 view = view_rotation(sc, ch.yaw);
-
-        // Posture distances of the current frame (squared, model space, scaled).
-        const std::array<float, 4> posture = posture_at(bc, f0, f1, blend);
-        const bool must = refresh;  // no usable snapshot: refreshed whatever the budget
-        float staleness = 0.0f;
-        if (!refresh) {
-          const float w = distance_weight(cc, glm::distance(ta, camera.eye));
-          if (cc.view_test) {
-            const float thr = std::min(glm::radians(cc.view_threshold_deg) * w, 3.14159265f);
-            const float cthr = w == 1.0f ? cos_view : std::cos(thr);
-            const float c = rotation_cosine(cs.view, view);
-            if (c < cthr) {
-              refresh = true;
-              ++st.view_refreshes;
-              if (budget) staleness = std::acos(std::clamp(c, -1.0f, 1.0f)) / std::max(thr, 1e-6f);
-            }
-          }
-          if (cc.posture_test && (budget || !refresh) && posture_changed(cs.posture, posture, cc.posture_threshold * w)) {
-            if (!refresh) ++st.posture_refreshes;
-            refresh = true;
-            if (budget) staleness = std::max(staleness, posture_staleness(cs.posture, posture, cc.posture_threshold * w));
-          }
-        } else if (!cs.valid) {
-          ++st.new_snapshots;
-        }
-        const AtlasWindow& win = cs.window;
-        const int slot = coverage_slot_of(win);
-        if (refresh) {
-          std::optional<SnapshotCamera> aligned;
-          if (config_.aligned_snapshots)
-            aligned = make_aligned_snapshot_camera(camera, ta, radius, win.size, config_.texels_per_pixel);
-          if (aligned) sc = *aligned;
-          CacheState next = cs;
-          next.valid = true;
-          next.view = view;
-          next.posture = posture;
-          next.half_size = sc.half_size;
-          next.aligned = aligned.has_value();
-          next.fitted = config_.fit_quads_to_coverage;
-          next.offset = glm::vec2(glm::dot(sc.ta - ta, cam_right), glm::dot(sc.ta - ta, cam_up));
-          next.rect = glm::vec4(-1, -1, 1, 1);
-          glm::vec4 snap_rect = next.rect;
-          if (config_.tight_quads) {
-            // This frame's pose box.
-            const auto& b0 = bc.bounds[f0];
-            const auto& b1 = bc.bounds[f1];
-            const glm::vec3 lo = glm::min(b0[0], b1[0]) * ch.scale, hi = glm::max(b0[1], b1[1]) * ch.scale;
-            WindowRects r = window_rects(sc, win.size, [&](int k) {
-              const glm::vec3 p((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
-              return ch.position + glm::vec3(cy * p.x + sy * p.z, p.y, -sy * p.x + cy * p.z) - sc.ta;
-            });
-            if (parts.size() > 1) {
-              // Tighter: the union of the body parts' boxes, each carried by its bone (a limb's
-              // box lies along the limb), within the pose's box.
-              const glm::mat4 place = placement(ch);
-              glm::vec4 quad(1e30f, 1e30f, -1e30f, -1e30f), clear = quad;
-              for (const BodyPart& bp : parts) {
-                const glm::mat4 bone = place * palette_matrix(pal, np, bc, f0, f1, blend, bp.bone);
-                const WindowRects rr = window_rects(sc, win.size, [&](int k) {
-                  const glm::vec3 c((k & 1) ? bp.box_max.x : bp.box_min.x, (k & 2) ? bp.box_max.y : bp.box_min.y,
-                                    (k & 4) ? bp.box_max.z : bp.box_min.z);
-                  return glm::vec3(bone * glm::vec4(c, 1.0f)) - sc.ta;
-                });
-                quad = rect_union(quad, rr.quad);
-                clear = rect_union(clear, rr.snapshot);
-              }
-              r.quad = rect_intersection(r.quad, quad);
-              r.snapshot = rect_intersection(r.snapshot, clear);
-            }
-            next.rect = r.quad;
-            snap_rect = r.snapshot;
-          }
-          const int slod = config_.snapshot_lod_from_screen ? std::min(lod_for(pixels, camera.height), lods - 1)
-                                                            : window_lod[win.size_class];
-          const float tpp = window_texels_per_pixel(win.size, sc.half_size, depth, ppm1);
-          if (must || !budget) {
-            cs = next;
-            plan_.snapshots[slod].push_back(
-                snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect, slot, next.fitted, tpp));
-            ++st.snapshots;
-            st.snapshot_triangles += m.lods[slod].triangle_count();
-            --budget_left_;
-          } else {
-            // Stale: drawn from its old snapshot unless the budget reaches it below.
-            pending_.push_back(PendingRefresh{staleness, static_cast<std::uint32_t>(i),
-                                              static_cast<std::uint32_t>(plan_.billboards.size()), slod, next,
-                                              snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect,
-                                                           slot, next.fitted, tpp),
-                                              billboard(ta, next, page, slot, cam_right, cam_up),
-                                              m.lods[slod].triangle_count()});
-          }
-        }
-        // The old snapshot is drawn where the character stands now (Ta moves with it).
-        plan_.billboards.push_back(billboard(ta, cs, page, slot, cam_right, cam_up));
-        st.quad_texels += rect_texels(cs.rect, win.size);
-        ++st.impostors;
-        ++st.impostors_per_window[win.size_class];
-      }
+      add_stats(st, k.st);
+      budget_used += k.budget_used;
     }
-    if (as_geometry) {
-      const int lod = std::min(lod_for(pixels, camera.height), lods - 1);
-      plan_.geometry[lod].push_back(inst);
-      ++st.geometry;
-      ++st.geometry_per_lod[std::min(lod, 7)];
-      st.geometry_triangles += m.lods[lod].triangle_count();
-    }
+    for (std::size_t c = 0; c < chunks; ++c)
+      for (std::uint32_t i : chunks_[c].deferred) plan_character(i, crowd[i], fs, serial);
+  } else {
+    for (std::size_t i = 0; i < n; ++i) plan_character(i, crowd[i], fs, serial);
   }
+  budget_left_ -= budget_used;
   // The budget left goes to the stalest; the others wait (section 7, item 1).
   if (!pending_.empty()) {
     const std::size_t take = stalest_first(pending_, budget_left_);

@@ -394,6 +394,13 @@ struct Renderer::Impl {
   // Quads fitted to the coverage: a rectangle (vec4) per smallest-window slot of the atlas.
   GLuint prog_coverage = 0, coverage = 0;
   bool fits_due = false;  // a snapshot of this frame wants its rectangle
+  // DrawOptions::time_stages: timestamps at the start and after snapshots, coverage, geometry,
+  // impostors.
+  std::array<GLuint, 5> stamps{};
+  bool stamped = false;
+  void stamp(bool on, int k) {
+    if (on) glQueryCounter(stamps[k], GL_TIMESTAMP);
+  }
   int snapshot_samples = 1;
   GLint loc_geometry_viewproj = -1;
   GLuint atlas = 0, atlas_depth = 0, atlas_fbo = 0;
@@ -467,7 +474,8 @@ struct Renderer::Impl {
     }
   }
 
-  void take_snapshots(const FramePlan& plan);
+  void take_snapshots(const FramePlan& plan, bool time_stages);
+  void take_snapshot_passes(const FramePlan& plan);  // the draws; sets fits_due
 
   void draw_lod(GLuint prog, int lod, GLsizei count, GLuint base_instance) {
     const MeshLod& ml = model->lods[lod];
@@ -480,7 +488,25 @@ struct Renderer::Impl {
   }
 };
 
-void Renderer::Impl::take_snapshots(const FramePlan& plan) {
+void Renderer::Impl::take_snapshots(const FramePlan& plan, bool time_stages) {
+  take_snapshot_passes(plan);
+  stamp(time_stages, 1);
+  if (fits_due) {
+    // The new snapshots' covered rectangles (one work group each; those not fitted return at once).
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT);
+    glUseProgram(prog_coverage);
+    glBindTextureUnit(2, atlas);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, coverage);
+    glBindBufferRange(GL_SHADER_STORAGE_BUFFER, 1, snapshots.id, 0,
+                      static_cast<GLsizeiptr>(snapshot_scratch.size() * sizeof(SnapshotGpu)));
+    glDispatchCompute(static_cast<GLuint>(snapshot_scratch.size()), 1, 1);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+  }
+  stamp(time_stages, 2);
+}
+
+void Renderer::Impl::take_snapshot_passes(const FramePlan& plan) {
+  fits_due = false;
   const int nlods = static_cast<int>(lods.size());
   due.clear();
   for (int lod = 0; lod < static_cast<int>(plan.snapshots.size()); ++lod)
@@ -548,17 +574,6 @@ void Renderer::Impl::take_snapshots(const FramePlan& plan) {
   for (int k = 0; k < 4; ++k) glDisable(GL_CLIP_DISTANCE0 + k);
   glBindFramebuffer(GL_DRAW_FRAMEBUFFER, static_cast<GLuint>(prev_fbo));
   glViewport(vp[0], vp[1], vp[2], vp[3]);
-  if (fits_due) {
-    // The new snapshots' covered rectangles (one work group each; those not fitted return at once).
-    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT);
-    glUseProgram(prog_coverage);
-    glBindTextureUnit(2, atlas);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, coverage);
-    glBindBufferRange(GL_SHADER_STORAGE_BUFFER, 1, snapshots.id, 0,
-                      static_cast<GLsizeiptr>(snapshot_scratch.size() * sizeof(SnapshotGpu)));
-    glDispatchCompute(static_cast<GLuint>(snapshot_scratch.size()), 1, 1);
-    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
-  }
 }
 
 Renderer::Renderer() : impl_(std::make_unique<Impl>()) {}
@@ -772,6 +787,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
 Renderer::~Renderer() {
   if (!impl_) return;
   Impl& d = *impl_;
+  if (d.stamps[0]) glDeleteQueries(5, d.stamps.data());
   for (auto& l : d.lods) {
     glDeleteVertexArrays(1, &l.vao_geometry);
     glDeleteVertexArrays(1, &l.vao_snapshot);
@@ -815,8 +831,12 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
   glDepthMask(GL_TRUE);
   glDepthFunc(GL_LESS);
 
-  // 1. Snapshots due (section 4: shared pages, few passes).
-  if (options.take_snapshots) d.take_snapshots(plan);
+  const bool ts = options.time_stages;
+  if (ts && d.stamps[0] == 0) glCreateQueries(GL_TIMESTAMP, 5, d.stamps.data());
+  d.stamped = ts;
+  d.stamp(ts, 0);
+  // 1. Snapshots due (section 4: shared pages, few passes), then their coverage rectangles.
+  if (options.take_snapshots) d.take_snapshots(plan, ts);
   glViewport(0, 0, plan.camera.width, plan.camera.height);
   const glm::mat4 viewproj = plan.camera.projection() * plan.camera.view();
 
@@ -839,6 +859,7 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
     }
   }
 
+  d.stamp(ts, 3);
   // 3. Impostors: camera-facing quads, one instanced draw.
   if (options.draw_impostors && !plan.billboards.empty()) {
     GLint sample_buffers = 0, samples = 1;
@@ -913,8 +934,24 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
     glDisable(GL_SAMPLE_ALPHA_TO_COVERAGE);
     glDisable(GL_SAMPLE_ALPHA_TO_ONE);
   }
+  d.stamp(ts, 4);
   glBindVertexArray(0);
   glUseProgram(0);
+}
+
+StageTimes Renderer::stage_times() const {
+  const Impl& d = *impl_;
+  StageTimes t;
+  if (!d.stamped) return t;
+  std::array<GLuint64, 5> ns{};
+  for (int k = 0; k < 5; ++k) glGetQueryObjectui64v(d.stamps[k], GL_QUERY_RESULT, &ns[k]);
+  auto ms = [&](int a, int b) { return ns[b] >= ns[a] ? static_cast<double>(ns[b] - ns[a]) * 1e-6 : 0.0; };
+  t.snapshots = ms(0, 1);
+  t.coverage = ms(1, 2);
+  t.geometry = ms(2, 3);
+  t.impostors = ms(3, 4);
+  t.valid = true;
+  return t;
 }
 
 std::vector<std::uint8_t> Renderer::read_atlas_page(int page) const {

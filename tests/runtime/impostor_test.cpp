@@ -1,6 +1,7 @@
 // The impostor logic without GL: snapshot camera, cache tests, window choice, atlas packing and
 // the frame planner's decisions.
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <set>
 #include <tuple>
@@ -326,6 +327,73 @@ TEST(FramePlanner, RefreshBudgetServesTheStalestFirst) {
   auto f = planner.plan(crowd, cam, 0.25f, RenderMode::kImpostor).stats;
   EXPECT_EQ(f.snapshots, 2);
   EXPECT_EQ(f.deferred_refreshes, 3);
+}
+
+// Crowds of FramePlanner::kParallelCharacters and more are planned on a pool of threads; the
+// plan must not depend on how many: same draws, same order, same counts, frame after frame, while
+// characters animate, turn, change window size (the camera comes closer) and wait on a budget.
+TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
+  Model m = tiny_model();
+  Crowd crowd(m);
+  for (int i = 0; i < 640; ++i)
+    crowd.add(Character{glm::vec3(3.0f * static_cast<float>(i % 32) - 48.0f, 0, -3.0f * static_cast<float>(i / 32)),
+                        0.1f * static_cast<float>(i % 7), 1.0f, 0, 0.013f * static_cast<float>(i), 1.0f});
+  ASSERT_GE(crowd.size(), FramePlanner::kParallelCharacters);
+  auto bytes_equal = [](const auto& a, const auto& b) {
+    return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(a[0])) == 0);
+  };
+  for (int budget : {0, 40}) {
+    ImpostorConfig cfg;
+    cfg.cache.refresh_budget = budget;
+    cfg.max_pages = 64;
+    std::vector<FramePlanner> planners;
+    for (unsigned threads : {1u, 2u, 5u}) {
+      cfg.planner_threads = threads;
+      planners.emplace_back(m, cfg);
+    }
+    int changes = 0, deferred = 0, served = 0;
+    for (int f = 0; f < 12; ++f) {
+      // The camera comes closer for four frames (windows change size), then stays (the budget
+      // then serves stale impostors).
+      SceneCamera cam = facing_camera(120.0f - 12.0f * static_cast<float>(std::min(f, 4)));
+      cam.eye.x = 2.0f * static_cast<float>(std::min(f, 4));
+      // Every fifth character turns, each at its own rate, so the stalest lie all over the crowd.
+      for (std::size_t i = 0; i < crowd.size(); i += 5) crowd[i].yaw += 0.02f + 0.01f * static_cast<float>((i * 37) % 11);
+      const float t = 0.04f * static_cast<float>(f);
+      const FramePlan& ref = planners[0].plan(crowd, cam, t, RenderMode::kAuto);
+      changes += ref.stats.window_refreshes;
+      deferred += ref.stats.deferred_refreshes;
+      if (f > 4) served += ref.stats.view_refreshes > 0 ? ref.stats.snapshots : 0;
+      for (std::size_t k = 1; k < planners.size(); ++k) {
+        SCOPED_TRACE(testing::Message() << "budget " << budget << ", frame " << f << ", planner " << k);
+        const FramePlan& p = planners[k].plan(crowd, cam, t, RenderMode::kAuto);
+        EXPECT_TRUE(bytes_equal(p.billboards, ref.billboards));
+        for (std::size_t l = 0; l < ref.geometry.size(); ++l) {
+          EXPECT_TRUE(bytes_equal(p.geometry[l], ref.geometry[l]));
+          EXPECT_TRUE(bytes_equal(p.snapshots[l], ref.snapshots[l]));
+        }
+        EXPECT_EQ(p.stats.impostors, ref.stats.impostors);
+        EXPECT_EQ(p.stats.geometry, ref.stats.geometry);
+        EXPECT_EQ(p.stats.culled, ref.stats.culled);
+        EXPECT_EQ(p.stats.snapshots, ref.stats.snapshots);
+        EXPECT_EQ(p.stats.view_refreshes, ref.stats.view_refreshes);
+        EXPECT_EQ(p.stats.posture_refreshes, ref.stats.posture_refreshes);
+        EXPECT_EQ(p.stats.window_refreshes, ref.stats.window_refreshes);
+        EXPECT_EQ(p.stats.deferred_refreshes, ref.stats.deferred_refreshes);
+        EXPECT_EQ(p.stats.snapshot_triangles, ref.stats.snapshot_triangles);
+        EXPECT_EQ(p.stats.impostors_per_window, ref.stats.impostors_per_window);
+        EXPECT_DOUBLE_EQ(p.stats.quad_texels, ref.stats.quad_texels);
+        EXPECT_EQ(p.stats.atlas_windows_used, ref.stats.atlas_windows_used);
+      }
+      EXPECT_EQ(ref.stats.impostors + ref.stats.geometry + ref.stats.culled, 640);
+    }
+    // The run did exercise what the threads must agree on.
+    EXPECT_GT(changes, 0);
+    EXPECT_GT(served, 0);
+    if (budget > 0) {
+      EXPECT_GT(deferred, 0);
+    }
+  }
 }
 
 TEST(FramePlanner, WindowSizeCullingAndNearSwitch) {

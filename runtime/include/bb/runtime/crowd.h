@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -138,6 +139,11 @@ struct ImpostorConfig {
   // draws 18 % fewer snapshot triangles, but the frame time is the same (the cards' fill dominates)
   // and PSNR is 0.34 dB lower (23.57 against 23.91); with the poses held it is 0.4 dB higher.
   bool turn_limb_cards = false;
+  // Threads that plan a frame (FramePlanner::plan), the calling thread included; 0: one per
+  // hardware thread. Crowds of at least FramePlanner::kParallelCharacters characters without part
+  // cards are planned in chunks on a pool of worker threads (started once, asleep between
+  // frames); the plan is the same whatever the number of threads. 1: on the calling thread only.
+  unsigned planner_threads = 0;
 };
 inline constexpr float kLimbElongation = 2.0f, kLimbFlatness = 1.7f;
 // Index of `w`'s fitted rectangle (ImpostorConfig::fit_quads_to_coverage) in the renderer's list:
@@ -207,8 +213,12 @@ struct FramePlan {
   FrameStats stats;
 };
 
+class WorkerPool;
+
 class FramePlanner {
  public:
+  // Crowds from this size on are planned on ImpostorConfig::planner_threads threads.
+  static constexpr std::size_t kParallelCharacters = 512;
   FramePlanner(const Model& model, const ImpostorConfig& config = {});
 
   // Plans one frame of `crowd` (of this planner's model) seen by `camera` at scene time `time`
@@ -272,8 +282,44 @@ class FramePlanner {
     BillboardGpu card;
     std::size_t triangles = 0;
   };
+  // What plan_character needs of the frame (the same for every character).
+  struct FrameSetup {
+    const SceneCamera& camera;
+    const std::array<glm::vec4, 6>& planes;  // frustum, world
+    const glm::vec3 &cam_right, &cam_up, &fwd;
+    float ppm1, cos_view, switch_px, page, time;
+    bool impostor_mode, budget;
+    RenderMode mode;
+    const std::array<int, 8>& window_lod;
+  };
+  // Where plan_character writes: the plan's lists, or a chunk's. `deferred` set: characters whose
+  // atlas window must be allocated or changed are only listed there (a parallel pass).
+  struct Out {
+    std::vector<std::vector<InstanceGpu>>* geometry;
+    std::vector<std::vector<SnapshotGpu>>* snapshots;
+    std::vector<BillboardGpu>* billboards;
+    std::vector<PendingRefresh>* pending;
+    FrameStats* st;
+    int* budget_used;
+    std::vector<std::uint32_t>* deferred;
+  };
+  struct Chunk {
+    std::vector<std::vector<InstanceGpu>> geometry;
+    std::vector<std::vector<SnapshotGpu>> snapshots;
+    std::vector<BillboardGpu> billboards;
+    std::vector<PendingRefresh> pending;
+    std::vector<std::uint32_t> deferred;
+    FrameStats st;
+    int budget_used = 0;
+    void clear(std::size_t lods);
+  };
+  // Plans character i: culling, geometry LOD or impostor (cache tests, snapshot, card).
+  void plan_character(std::size_t i, const Character& ch, const FrameSetup& fs, const Out& out);
+  unsigned planner_threads();  // starts the pool when more than one thread is wanted
   const Model* model_;
   ImpostorConfig config_;
+  std::shared_ptr<WorkerPool> pool_;
+  std::vector<Chunk> chunks_;
   std::vector<PendingRefresh> pending_;
   std::vector<PendingPart> pending_parts_;
   std::vector<std::uint8_t> refreshed_;  // part cards: characters with a card refreshed this frame

@@ -47,6 +47,19 @@ struct DrawOptions {
   bool draw_impostors = true;
   bool take_snapshots = true;
   ImpostorEdges edges = ImpostorEdges::kBlend;
+  // Records GPU timestamps between the stages of draw() (Renderer::stage_times): for profiling;
+  // costs a few queries per frame.
+  bool time_stages = false;
+};
+
+// GPU time of each stage of the last draw() made with DrawOptions::time_stages, ms (timestamps
+// taken on the GPU between the stages, so each covers its stage's commands as the GPU ran them).
+struct StageTimes {
+  double snapshots = 0;  // clearing and drawing the due snapshots into the atlas (and resolving them)
+  double coverage = 0;   // the compute pass fitting the quads to the new snapshots' coverage
+  double geometry = 0;   // the characters drawn as skinned geometry
+  double impostors = 0;  // the impostor quads
+  bool valid = false;    // false: the last draw did not time its stages
 };
 
 class Renderer {
@@ -76,6 +89,9 @@ class Renderer {
   // (FrameStats::quad_texels), narrowed to the coverage rectangles where they are fitted. Reads
   // the rectangles back from the GPU (waits for it): for reports, outside timed frames.
   double drawn_quad_texels(const FramePlan& plan) const;
+  // The stage times of the last draw() with DrawOptions::time_stages (waits for the GPU to reach
+  // its end): for reports, outside timed frames.
+  StageTimes stage_times() const;
   const Model& model() const;
 
  private:

@@ -1,0 +1,86 @@
+#!/usr/bin/env bash
+# The flow test bed on a lent NVIDIA machine (the device tool): the runtime-only bench_flow with
+# the same flags as `bodybuilder flow`. Prepare here (see docs/results.md, "NVIDIA H100"):
+#   .gl/  the GL loader packages (libegl1 libglvnd0 libopengl0 libgl1 libglx0 ...), .deb files
+#   .gpu/bin/bench_flow, .gpu/lib/{libtinygltf.so.2d,libstb.so.0}, .gpu/models/{default,CesiumMan,Fox}.glb
+# and run `bash bench/flow/gpu_run.sh SET` with .gl and .gpu carried; results go to $OUT.
+set -uo pipefail
+if command -v nvidia-smi >/dev/null; then  # only there: the loaders go into /
+  for f in .gl/*.deb; do dpkg -x "$f" /; done
+  ldconfig
+fi
+export LD_LIBRARY_PATH="$PWD/.gpu/lib${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
+export __EGL_VENDOR_LIBRARY_FILENAMES=${__EGL_VENDOR_LIBRARY_FILENAMES:-/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json}
+[ -f "$__EGL_VENDOR_LIBRARY_FILENAMES" ] || unset __EGL_VENDOR_LIBRARY_FILENAMES
+OUT=${OUT:-/tmp/gpu_out}
+R=/tmp/gpu_results
+mkdir -p "$OUT" "$R"
+B=.gpu/bin/bench_flow
+M=.gpu/models
+nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.mem --format=csv 2>&1 | tee "$R/gpu.txt"
+# flow NAME ARGS...: one run, its JSON report as $R/NAME.json, a line of figures on stdout.
+flow() {
+  local name=$1; shift
+  local t0=$SECONDS
+  if timeout 300 "$B" flow "$@" -o "$R/$name" --json >"$R/$name.json" 2>"$R/$name.err"; then
+    python3 - "$R/$name.json" "$name" $((SECONDS - t0)) <<'PY'
+import json, sys
+r = json.load(open(sys.argv[1]))
+def line(x, tag):
+    return f"{tag:28s} geo {x.get('geometry_ms',0):8.3f} imp {x.get('impostor_ms',0):8.3f} x{1/x['ratio'] if x.get('ratio') else 0:6.2f} f {x.get('refresh_fraction',0):.3f} psnr {x.get('psnr_db',0):5.1f} ssim {x.get('ssim',0):.3f}"
+print(line(r, sys.argv[2]) + f"  ({sys.argv[3]} s) {r.get('device','')[:40]}")
+for s in r.get('sweep', []):
+    print(line(s, "  %s" % s.get('threshold', s.get('view_deg', s.get('posture')))))
+for s in r.get('scaling', []):
+    sp = s.get('frame_ms_split', {})
+    g, i = sp.get('geometry', {}), sp.get('impostor', {})
+    print(f"  humans {s['humans']:6d} geo {s['geometry_ms']:9.3f} imp {s['impostor_ms']:8.3f} x{s['geometry_ms']/max(s['impostor_ms'],1e-9):6.2f} f {s.get('refresh_fraction',0):.3f}"
+          f" | geo plan/submit/finish {g.get('plan',0):.2f}/{g.get('submit',0):.2f}/{g.get('finish',0):.2f} imp {i.get('plan',0):.2f}/{i.get('submit',0):.2f}/{i.get('finish',0):.2f}")
+    gs = s.get('gpu_ms_stages')
+    if gs:
+        gi = gs['impostor']
+        print(f"      gpu: geometry {gs['geometry']['geometry']:.3f} | impostor snapshots {gi['snapshots']:.3f} coverage {gi['coverage']:.3f} quads {gi['impostors']:.3f}")
+PY
+  else
+    echo "$name FAILED: $(tail -3 "$R/$name.err")"
+  fi
+}
+set_smoke() {
+  flow smoke --model $M/default.glb --frames 5
+}
+set_scale() {
+  flow scaling --model $M/default.glb --frames 2 --gpu-stages --scaling --scaling-humans 20,1000,10000 --scaling-frames 5
+  flow scaling_view --model $M/default.glb --frames 2 --gpu-stages --posture off --scaling --scaling-humans 1000,10000 --scaling-frames 5
+  flow scaling_dw --model $M/default.glb --frames 2 --gpu-stages --distance-weighting --scaling --scaling-humans 20,1000,10000 --scaling-frames 5
+  flow scaling_cesium --model $M/CesiumMan.glb --frames 2 --gpu-stages --scaling --scaling-humans 1000,10000 --scaling-frames 5
+  flow main_stages --model $M/default.glb --frames 60 --gpu-stages
+}
+set_threads() {
+  for t in 1 0; do
+    flow scaling_t$t --model $M/default.glb --frames 2 --gpu-stages --planner-threads $t --scaling --scaling-humans 1000,10000 --scaling-frames 8
+    flow scaling_dw_t$t --model $M/default.glb --frames 2 --gpu-stages --planner-threads $t --distance-weighting --scaling --scaling-humans 1000,10000 --scaling-frames 8
+    flow scaling_cesium_dw_t$t --model $M/CesiumMan.glb --frames 2 --gpu-stages --planner-threads $t --distance-weighting --scaling --scaling-humans 10000 --scaling-frames 8
+  done
+  flow scaling_full --model $M/default.glb --frames 2 --scaling --scaling-humans 20,100,500,1000,2000,5000,10000 --scaling-frames 8
+  flow scaling_full_dw --model $M/default.glb --frames 2 --distance-weighting --scaling --scaling-humans 20,100,500,1000,2000,5000,10000 --scaling-frames 8
+}
+set_main() {
+  flow smoke --model $M/default.glb --frames 5
+  flow main --model $M/default.glb --frames 120
+  flow worst --model $M/default.glb --frames 60 --posture 0 --view 0
+  flow sweep_view --model $M/default.glb --frames 60 --sweep view
+  flow sweep_posture --model $M/default.glb --frames 60 --sweep posture
+  flow scaling --model $M/default.glb --frames 2 --scaling --scaling-humans 20,100,1000,2000,5000,10000 --scaling-frames 5
+  flow fox_view --model $M/Fox.glb --frames 40 --sweep view
+  flow cesium_view --model $M/CesiumMan.glb --frames 40 --sweep view
+  flow msaa1_view --model $M/default.glb --frames 40 --sweep view --msaa 1
+  flow parts_view --model $M/default.glb --frames 40 --sweep view --impostor-parts
+  flow parts_quality_view --model $M/default.glb --frames 40 --sweep view --impostor-parts --texels-per-pixel 2 --impostor-edges blend
+  flow exact_0 --model $M/default.glb --frames 40 --posture off --view 0 --snapshot-grid pixels --snapshot-samples 4 --impostor-edges blend
+  flow exact_8 --model $M/default.glb --frames 40 --posture off --view 8 --snapshot-grid pixels --snapshot-samples 4 --impostor-edges blend
+  flow budget --model $M/default.glb --frames 60 --humans 200 --orbit 30 --refresh-budget 30
+  flow nobudget --model $M/default.glb --frames 60 --humans 200 --orbit 30
+}
+set_${1:-main}
+(cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
+ls -la "$OUT"

@@ -1,0 +1,94 @@
+// A persistent pool of worker threads for per-frame work in the runtime (the planner): threads
+// are started once and sleep between calls, so a call costs a wake-up, not a thread start, and
+// allocates nothing.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstddef>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace bb::runtime {
+
+class WorkerPool {
+ public:
+  // `threads` in all, the calling thread included (at least 1: then run() calls inline).
+  explicit WorkerPool(unsigned threads) {
+    for (unsigned t = 1; t < threads; ++t) threads_.emplace_back([this] { work_loop(); });
+  }
+  ~WorkerPool() {
+    {
+      std::lock_guard<std::mutex> lock(m_);
+      stop_ = true;
+    }
+    wake_.notify_all();
+    for (auto& t : threads_) t.join();
+  }
+  WorkerPool(const WorkerPool&) = delete;
+  WorkerPool& operator=(const WorkerPool&) = delete;
+
+  unsigned size() const { return static_cast<unsigned>(threads_.size()) + 1; }
+
+  // Calls fn(k) for every k in [0, count) on the workers and the calling thread; returns when
+  // every call has returned. fn must be safe to call concurrently for different k and not throw.
+  template <typename Fn>
+  void run(std::size_t count, Fn& fn) {
+    if (threads_.empty() || count <= 1) {
+      for (std::size_t k = 0; k < count; ++k) fn(k);
+      return;
+    }
+    {
+      std::lock_guard<std::mutex> lock(m_);
+      call_ = [](void* f, std::size_t k) { (*static_cast<Fn*>(f))(k); };
+      ctx_ = &fn;
+      count_ = count;
+      next_.store(0);
+      busy_ = threads_.size();
+      ++generation_;
+    }
+    wake_.notify_all();
+    drain(call_, ctx_, count);
+    std::unique_lock<std::mutex> lock(m_);
+    done_.wait(lock, [this] { return busy_ == 0; });
+  }
+
+ private:
+  void drain(void (*call)(void*, std::size_t), void* ctx, std::size_t count) {
+    for (std::size_t k; (k = next_.fetch_add(1)) < count;) call(ctx, k);
+  }
+  void work_loop() {
+    std::size_t seen = 0;
+    for (;;) {
+      void (*call)(void*, std::size_t);
+      void* ctx;
+      std::size_t count;
+      {
+        std::unique_lock<std::mutex> lock(m_);
+        wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
+        if (stop_) return;
+        seen = generation_;
+        call = call_;
+        ctx = ctx_;
+        count = count_;
+      }
+      drain(call, ctx, count);
+      {
+        std::lock_guard<std::mutex> lock(m_);
+        if (--busy_ == 0) done_.notify_one();
+      }
+    }
+  }
+
+  std::vector<std::thread> threads_;
+  std::mutex m_;
+  std::condition_variable wake_, done_;
+  bool stop_ = false;
+  std::size_t generation_ = 0, busy_ = 0, count_ = 0;
+  void (*call_)(void*, std::size_t) = nullptr;
+  void* ctx_ = nullptr;
+  std::atomic<std::size_t> next_{0};
+};
+
+}  // namespace bb::runtime
