@@ -133,7 +133,13 @@ TEST(FlowCli, RefreshBudgetCapsTheSnapshotsPerFrame) {
     const auto& s = jc["frame_ms_spread"][path];
     EXPECT_GE(s["max"].get<double>(), s["p95"].get<double>()) << path;
     EXPECT_GE(s["sd"].get<double>(), 0.0) << path;
+    // The frame's parts (planning, submission, the wait for the GPU) add up to its time.
+    const auto& sp = jc["frame_ms_split"][path];
+    const double parts = sp["plan"].get<double>() + sp["submit"].get<double>() + sp["finish"].get<double>();
+    EXPECT_NEAR(parts, jc[std::string(path) + "_ms"].get<double>(), 1e-6 + 1e-9 * parts) << path;
+    for (const char* k : {"plan", "submit", "finish"}) EXPECT_GE(sp[k].get<double>(), 0.0) << path << " " << k;
   }
+  EXPECT_FALSE(jc.contains("gpu_ms_stages"));  // only with --gpu-stages
 }
 
 // Exact snapshots through the CLI: with every impostor refreshed, blended impostor frames cut out of
@@ -168,7 +174,7 @@ TEST(FlowCli, BadFlagsAreErrors) {
                            "flow --sweep size", "flow --model /nonexistent.glb --frames 1",
                            "flow --impostor-edges soft", "flow --snapshot-lod best", "flow --snapshot-camera fisheye",
                            "flow --refresh-budget -1", "flow --limb-cards round", "flow --snapshot-grid texels",
-                           "flow --snapshot-samples 3", "flow --quad-fit hull"}) {
+                           "flow --snapshot-samples 3", "flow --quad-fit hull", "flow --planner-threads -1"}) {
     Out o = run(args);
     EXPECT_NE(o.status, 0) << args;
     EXPECT_NE(o.text.find("flow"), std::string::npos) << args << ": " << o.text;
