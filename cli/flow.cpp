@@ -75,6 +75,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
     j["impostor_parts"] = r.parts;
     j["part_cards_per_frame"] = r.part_cards;
     j["limb_cards"] = s.turn_limb_cards ? "turn" : "fixed";
+    j["card_depth"] = s.parallax_cards ? "on" : "off";
   }
   auto split = [](const FlowResult::ErrorClass& c) {
     return ordered_json{{"mse", c.mse}, {"pixels", c.pixels}, {"share", c.share}};
@@ -162,6 +163,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (a.limb_cards != "turn" && a.limb_cards != "fixed")
     return fail("--limb-cards: expected turn or fixed (got \"" + a.limb_cards + "\")");
   s.turn_limb_cards = a.limb_cards == "turn";
+  if (a.card_depth != "on" && a.card_depth != "off")
+    return fail("--card-depth: expected on or off (got \"" + a.card_depth + "\")");
+  s.parallax_cards = a.card_depth == "on";
   if (a.snapshot_grid != "pixels" && a.snapshot_grid != "free")
     return fail("--snapshot-grid: expected pixels or free (got \"" + a.snapshot_grid + "\")");
   s.aligned_snapshots = a.snapshot_grid == "pixels";
@@ -362,6 +366,9 @@ void add_flow_command(CLI::App& app, int* status) {
                 "One impostor card per body part, carried by its bone between snapshots (less pose and view lag)");
   cmd->add_option("--limb-cards", a->limb_cards,
                   "With --impostor-parts: limb cards turn about the limb's axis to face the eye, or stay fixed to the bone")
+      ->capture_default_str();
+  cmd->add_option("--card-depth", a->card_depth,
+                  "With --impostor-parts: depth-corrected cards (each pixel finds the snapshot texel on its own eye ray)")
       ->capture_default_str();
   cmd->add_option("--snapshot-grid", a->snapshot_grid,
                   "Snapshot texels: pixels (on the screen's pixel grid, exact when taken) or free (section 4.2's camera)")

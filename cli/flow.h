@@ -48,6 +48,7 @@ struct FlowSettings {
   bool part_cards = false;                  // ImpostorConfig::part_cards (one card per body part)
   int refresh_budget = 0;                   // CacheConfig::refresh_budget (0: no limit)
   bool turn_limb_cards = false;             // ImpostorConfig::turn_limb_cards
+  bool parallax_cards = false;              // ImpostorConfig::parallax_cards (depth-corrected cards)
   bool aligned_snapshots = false;           // ImpostorConfig::aligned_snapshots (texels on pixels)
   int snapshot_samples = 1;                 // ImpostorConfig::snapshot_samples
   bool fit_quads = true;                    // ImpostorConfig::fit_quads_to_coverage
@@ -120,6 +121,7 @@ struct FlowArgs {
   bool impostor_parts = false;
   int refresh_budget = 0;
   std::string limb_cards = "fixed";
+  std::string card_depth = "off";
   std::string snapshot_grid = "free";
   int snapshot_samples = 1;
   std::string quad_fit = "coverage";

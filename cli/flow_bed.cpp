@@ -81,6 +81,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   config.part_cards = s.part_cards;
   config.cache.refresh_budget = s.refresh_budget;
   config.turn_limb_cards = s.turn_limb_cards;
+  config.parallax_cards = s.parallax_cards;
   config.aligned_snapshots = s.aligned_snapshots;
   config.snapshot_samples = s.snapshot_samples;
   config.fit_quads_to_coverage = s.fit_quads;

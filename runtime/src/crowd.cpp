@@ -710,7 +710,8 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
                           glm::vec4(static_cast<float>(win.page), static_cast<float>(slot), c.fitted ? 1.0f : 0.0f, 0.0f),
                           c.rect,
                           glm::vec4(t * glm::vec3(bone[p] * glm::vec4(c.axis_x, 0.0f)), 1.0f),
-                          glm::vec4(t * glm::vec3(bone[p] * glm::vec4(c.axis_y, 0.0f)), 1.0f)};
+                          glm::vec4(t * glm::vec3(bone[p] * glm::vec4(c.axis_y, 0.0f)), 1.0f),
+                          c.snap};
     };
     if (due[p]) {
       const float r = bp.radius * sc;
@@ -732,6 +733,10 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
       next.axis_y = glm::vec3(inv * glm::vec4(cam.uo * cam.half_size, 0.0f));
       next.normal = glm::vec3(inv * glm::vec4(los, 0.0f));
       next.half_size = cam.half_size;
+      // The snapshot's eye in the card's frame (units of the half size): carried with the axes.
+      next.snap = config_.parallax_cards && cam.perspective && config_.snapshot_samples <= 1
+                      ? glm::vec4(cam.offset / cam.half_size, cam.distance / cam.half_size, r / cam.half_size)
+                      : glm::vec4(0.0f);
       next.posture = posture;
       next.fitted = config_.fit_quads_to_coverage;
       next.rect = glm::vec4(-1, -1, 1, 1);

@@ -154,12 +154,21 @@ layout(location = 2) in vec4 i_layer;
 layout(location = 3) in vec4 i_rect;
 layout(location = 4) in vec4 i_axis_x;  // part cards (w = 1): half axes, world
 layout(location = 5) in vec4 i_axis_y;
+layout(location = 6) in vec4 i_snap;  // depth-corrected part cards (z > 0): snapshot eye, radius
 uniform mat4 u_viewproj;
 uniform vec3 u_eye;
 uniform vec3 u_up;
+uniform int u_parallax;  // 1: depth-corrected part cards where i_snap.z > 0
 // Quads fitted to the coverage (i_layer.z = 1): the rectangle kCoverageCs found in the window.
 layout(std430, binding = 0) readonly buffer Coverage { vec4 covered[]; };
+// Depth-corrected cards: the covered texels' offsets from the card plane (min, max; half sizes).
+layout(std430, binding = 3) readonly buffer DepthRange { vec4 depth_range[]; };
 out vec3 v_uvl;
+out vec2 v_c;          // point of the card plane, window units
+flat out vec3 v_eye;   // the eye in the card's frame (window units; z along the snapshot's Vo)
+flat out vec4 v_snap;  // i_snap when corrected, else 0
+flat out vec4 v_rect;  // the part of the window with snapshot texels
+flat out vec4 v_uvbox;
 void main() {
   vec4 r = i_rect;
   if (i_layer.z > 0.5) {
@@ -167,7 +176,43 @@ void main() {
     r = vec4(max(r.xy, f.xy), min(r.zw, f.zw));
     if (any(greaterThanEqual(r.xy, r.zw))) r = vec4(0.0);  // nothing covered: no area
   }
+  v_rect = r;
+  v_uvbox = i_uv;
+  v_snap = vec4(0.0);
+  v_eye = vec3(0.0);
+  if (u_parallax == 1 && i_axis_x.w > 0.5 && i_snap.z > 0.0 && r.x < r.z) {
+    // The card's frame: Ho, Uo, Vo = Uo x Ho, lengths in half sizes.
+    float hl = length(i_axis_x.xyz);
+    vec3 ho = i_axis_x.xyz / hl, uo = normalize(i_axis_y.xyz), vo = normalize(cross(uo, ho));
+    vec3 d = (u_eye - i_ta_half.xyz) / hl;
+    vec3 e = vec3(dot(d, ho), dot(d, uo), dot(d, vo));
+    float ez = -e.z, dist = i_snap.z;
+    if (ez > 2.0 * i_snap.w) {
+      // Widen the quad to where the snapshot's surface (its covered depth range) appears on the
+      // card from this eye: each corner's snapshot ray at both ends of the range.
+      vec2 dr = vec2(-i_snap.w, i_snap.w);
+      if (i_layer.z > 0.5) {
+        vec4 g = depth_range[int(i_layer.y)];
+        if (g.x <= g.y) dr = clamp(g.xy, -i_snap.w, i_snap.w);
+      }
+      vec2 s = -i_snap.xy;
+      vec4 q = r;
+      for (int k = 0; k < 4; ++k) {
+        vec2 corner = mix(r.xy, r.zw, vec2(k & 1, k >> 1));
+        for (int j = 0; j < 2; ++j) {
+          float t = dr[j];
+          vec2 x = s + (corner - s) * ((t + dist) / dist);
+          vec2 p = e.xy + (x - e.xy) * (ez / (ez + t));
+          q = vec4(min(q.xy, p), max(q.zw, p));
+        }
+      }
+      r = q;
+      v_snap = i_snap;
+      v_eye = e;
+    }
+  }
   vec2 c = mix(r.xy, r.zw, vec2(gl_VertexID & 1, gl_VertexID >> 1));
+  v_c = c;
   vec3 ta = i_ta_half.xyz;
   vec3 p;
   if (i_axis_x.w > 0.5) {
@@ -196,17 +241,66 @@ uniform int u_edges;  // 0: alpha test, 1: premultiplied blending, 2: alpha to c
 uniform int u_taps;   // 4: the pixel's coverage from four taps; 1: one tap (the texels hold it)
 uniform int u_samples;
 uniform vec2 u_sample_pos[16];  // offsets from the pixel centre, pixels
+layout(binding = 4) uniform sampler2DArray u_depth;  // the snapshots' depth (parallax cards)
+uniform int u_parallax_steps;
 in vec3 v_uvl;
+in vec2 v_c;
+flat in vec3 v_eye;
+flat in vec4 v_snap;
+flat in vec4 v_rect;
+flat in vec4 v_uvbox;
 layout(location = 0) out vec4 o_color;
 vec4 tap(vec2 uv) { return texture(u_atlas, vec3(uv, v_uvl.z)); }
+// Snapshot depth (window depth of kSnapshotVs's perspective) -> offset from the card plane along
+// Vo, in half sizes.
+vec4 plane_offset(vec4 d) {
+  float dist = v_snap.z, r = v_snap.w;
+  float n = max(dist - r, 0.01 * dist), f = dist + r;
+  return 2.0 * f * n / ((f + n) - (2.0 * d - 1.0) * (f - n)) - dist;
+}
+// The snapshot surface's offset from the card plane at window point w: the covered texels of the
+// 2x2 around it (bilinear weights), else the covered texels two texels away, else `fallback`.
+float surface_offset(vec2 w, float fallback) {
+  vec3 p = vec3(mix(v_uvbox.xy, v_uvbox.zw, w * 0.5 + 0.5), v_uvl.z);
+  vec4 g = textureGather(u_depth, p);
+  vec4 m = vec4(lessThan(g, vec4(1.0)));
+  vec2 f = fract(p.xy * vec2(textureSize(u_depth, 0).xy) - 0.5);
+  vec4 wt = m * vec4((1.0 - f.x) * f.y, f.x * f.y, f.x * (1.0 - f.y), (1.0 - f.x) * (1.0 - f.y));
+  float sw = dot(wt, vec4(1.0));
+  if (sw > 0.0) return dot(wt, plane_offset(g)) / sw;
+  vec2 acc = vec2(0.0);
+  vec4 g0 = textureGatherOffset(u_depth, p, ivec2(-2, 0)), g1 = textureGatherOffset(u_depth, p, ivec2(2, 0));
+  vec4 g2 = textureGatherOffset(u_depth, p, ivec2(0, -2)), g3 = textureGatherOffset(u_depth, p, ivec2(0, 2));
+  for (int k = 0; k < 4; ++k) {
+    vec4 gk = k == 0 ? g0 : k == 1 ? g1 : k == 2 ? g2 : g3;
+    vec4 mk = vec4(lessThan(gk, vec4(1.0)));
+    acc += vec2(dot(mk, plane_offset(gk)), dot(mk, vec4(1.0)));
+  }
+  return acc.y > 0.0 ? acc.x / acc.y : fallback;
+}
 void main() {
   vec2 dx = dFdx(v_uvl.xy), dy = dFdy(v_uvl.xy);
+  vec2 uv0 = v_uvl.xy;
+  if (v_snap.z > 0.0) {
+    // Depth-corrected card: find the window point w whose snapshot surface point lies on this
+    // pixel's eye ray. From the plane point c: the surface's offset t at w, the ray's point at
+    // that offset, seen from the snapshot's eye on the plane (iterative parallax mapping).
+    vec2 c = v_c, s = -v_snap.xy, w = c;
+    float ez = -v_eye.z, dist = v_snap.z, t = 0.0;
+    for (int k = 0; k < u_parallax_steps; ++k) {
+      t = surface_offset(clamp(w, v_rect.xy, v_rect.zw), t);
+      vec2 x = c + (c - v_eye.xy) * (t / ez);
+      w = s + (x - s) * (dist / (dist + t));
+    }
+    if (any(lessThan(w, v_rect.xy)) || any(greaterThan(w, v_rect.zw))) discard;
+    uv0 = mix(v_uvbox.xy, v_uvbox.zw, w * 0.5 + 0.5);
+  }
 #ifdef BB_PER_SAMPLE
   {
     int mask = 0;
     vec4 sum = vec4(0.0);
     for (int k = 0; k < u_samples; ++k) {
-      vec4 t = tap(v_uvl.xy + u_sample_pos[k].x * dx + u_sample_pos[k].y * dy);
+      vec4 t = tap(uv0 + u_sample_pos[k].x * dx + u_sample_pos[k].y * dy);
       if (t.a >= 0.5) {
         mask |= 1 << k;
         sum += t;
@@ -219,14 +313,14 @@ void main() {
 #else
   if (u_edges == 4) {
     // One tap at the pixel centre: at one texel per pixel, texels on pixels, an exact copy.
-    vec4 t = tap(v_uvl.xy);
+    vec4 t = tap(uv0);
     if (t.a < 0.5) discard;
     o_color = vec4(t.rgb / t.a, 1.0);
     return;
   }
-  vec4 c = u_taps == 1 ? tap(v_uvl.xy)
-                       : 0.25 * (tap(v_uvl.xy - 0.125 * dx - 0.375 * dy) + tap(v_uvl.xy + 0.375 * dx - 0.125 * dy) +
-                                 tap(v_uvl.xy - 0.375 * dx + 0.125 * dy) + tap(v_uvl.xy + 0.125 * dx + 0.375 * dy));
+  vec4 c = u_taps == 1 ? tap(uv0)
+                       : 0.25 * (tap(uv0 - 0.125 * dx - 0.375 * dy) + tap(uv0 + 0.375 * dx - 0.125 * dy) +
+                                 tap(uv0 - 0.375 * dx + 0.125 * dy) + tap(uv0 + 0.125 * dx + 0.375 * dy));
   if (u_edges == 0) {
     if (c.a < 0.5) discard;
     o_color = vec4(c.rgb / c.a, 1.0);
@@ -255,6 +349,12 @@ struct Snapshot { vec4 instance[2], ho_half, uo_dist, vo, ta, window, rect, offs
 layout(std430, binding = 1) readonly buffer Snapshots { Snapshot snapshots[]; };
 uniform float u_page;  // page size, texels
 shared int lo_x, lo_y, hi_x, hi_y;
+#ifdef BB_DEPTH_RANGE
+// Depth-corrected cards: the covered texels' offsets from the card plane (along Vo, half sizes).
+layout(binding = 4) uniform sampler2DArray u_depth;
+layout(std430, binding = 3) writeonly buffer DepthRange { vec4 depth_range[]; };
+shared uint d_lo, d_hi;
+#endif
 void main() {
   Snapshot s = snapshots[gl_WorkGroupID.x];
   if (s.part.z < 0.5) return;  // the whole work group: not fitted
@@ -263,6 +363,10 @@ void main() {
     lo_y = 1 << 30;
     hi_x = -(1 << 30);
     hi_y = -(1 << 30);
+#ifdef BB_DEPTH_RANGE
+    d_lo = 0x7f7fffffu;
+    d_hi = 0u;
+#endif
   }
   barrier();
   float size = s.window.z * u_page;
@@ -272,11 +376,19 @@ void main() {
   ivec2 t1 = clamp(ivec2(ceil(origin + (s.quad.zw + 1.0) * 0.5 * size)) - 1, lo, hi);
   int layer = int(s.window.w);
   ivec2 a = ivec2(1 << 30), b = ivec2(-(1 << 30));
+  float da = 2.0, db = -1.0;
   for (int y = t0.y + int(gl_LocalInvocationID.y); y <= t1.y; y += 16)
     for (int x = t0.x + int(gl_LocalInvocationID.x); x <= t1.x; x += 16)
       if (texelFetch(u_atlas, ivec3(x, y, layer), 0).a > 0.0) {
         a = min(a, ivec2(x, y));
         b = max(b, ivec2(x, y));
+#ifdef BB_DEPTH_RANGE
+        float d = texelFetch(u_depth, ivec3(x, y, layer), 0).r;
+        if (d < 1.0) {
+          da = min(da, d);
+          db = max(db, d);
+        }
+#endif
       }
   if (a.x <= b.x) {
     atomicMin(lo_x, a.x);
@@ -284,6 +396,12 @@ void main() {
     atomicMax(hi_x, b.x);
     atomicMax(hi_y, b.y);
   }
+#ifdef BB_DEPTH_RANGE
+  if (da <= db) {  // depths in [0, 1]: their bits order as the values
+    atomicMin(d_lo, floatBitsToUint(da));
+    atomicMax(d_hi, floatBitsToUint(db));
+  }
+#endif
   barrier();
   if (gl_LocalInvocationIndex == 0u) {
     vec4 r = vec4(1.0, 1.0, -1.0, -1.0);  // empty
@@ -294,6 +412,17 @@ void main() {
       r = vec4(p0, p1);
     }
     covered[int(s.part.y)] = r;
+#ifdef BB_DEPTH_RANGE
+    vec4 dr = vec4(1.0, -1.0, 0.0, 0.0);  // empty
+    if (d_lo <= d_hi) {
+      float dist = s.uo_dist.w, rad = s.ta.w, h = s.ho_half.w;
+      float n = max(dist - rad, 0.01 * dist), f = dist + rad;
+      vec2 d = vec2(uintBitsToFloat(d_lo), uintBitsToFloat(d_hi));
+      vec2 z = 2.0 * f * n / ((f + n) - (2.0 * d - 1.0) * (f - n));
+      dr.xy = (z - dist) / h;
+    }
+    depth_range[int(s.part.y)] = dr;
+#endif
   }
 }
 )";
@@ -393,6 +522,10 @@ struct Renderer::Impl {
   GLuint prog_resolve = 0, scratch_color = 0, scratch_depth = 0, scratch_fbo = 0;
   // Quads fitted to the coverage: a rectangle (vec4) per smallest-window slot of the atlas.
   GLuint prog_coverage = 0, coverage = 0;
+  // Depth-corrected part cards (ImpostorConfig::parallax_cards, layered snapshots with one sample):
+  // the covered depth range per coverage slot.
+  bool parallax = false;
+  GLuint depth_range = 0;
   bool fits_due = false;  // a snapshot of this frame wants its rectangle
   // DrawOptions::time_stages: timestamps at the start and after snapshots, coverage, geometry,
   // impostors.
@@ -425,7 +558,8 @@ struct Renderer::Impl {
   } shade_geometry, shade_snapshot;
   struct BillboardProgram {
     GLuint prog = 0;
-    GLint viewproj = -1, eye = -1, up = -1, edges = -1, samples = -1, sample_pos = -1, taps = -1;
+    GLint viewproj = -1, eye = -1, up = -1, edges = -1, samples = -1, sample_pos = -1, taps = -1, parallax = -1,
+          parallax_steps = -1;
   } bb, bb_samples;  // averaged taps; per-sample coverage
   int sample_count = 0;  // of the sample positions last given to the impostor shader
 
@@ -499,6 +633,10 @@ void Renderer::Impl::take_snapshots(const FramePlan& plan, bool time_stages) {
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, coverage);
     glBindBufferRange(GL_SHADER_STORAGE_BUFFER, 1, snapshots.id, 0,
                       static_cast<GLsizeiptr>(snapshot_scratch.size() * sizeof(SnapshotGpu)));
+    if (parallax) {
+      glBindTextureUnit(4, atlas_depth);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, depth_range);
+    }
     glDispatchCompute(static_cast<GLuint>(snapshot_scratch.size()), 1, 1);
     glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
   }
@@ -604,8 +742,11 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     if (!pr) return pr.error();
     d.prog_resolve = *pr;
   }
+  d.parallax = config.parallax_cards && d.layered && d.snapshot_samples == 1;
   {
-    auto cs = compile(GL_COMPUTE_SHADER, kCoverageCs, "coverage shader");
+    std::string ccs = kCoverageCs;
+    if (d.parallax) ccs.insert(ccs.find('\n') + 1, "#define BB_DEPTH_RANGE 1\n");
+    auto cs = compile(GL_COMPUTE_SHADER, ccs, "coverage shader");
     if (!cs) return cs.error();
     auto pcov = link({*cs}, "coverage shader");
     if (!pcov) return pcov.error();
@@ -617,6 +758,11 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     const std::vector<glm::vec4> whole(static_cast<std::size_t>(std::max(1, config.max_pages) * per_row * per_row),
                                        glm::vec4(-1.0f, -1.0f, 1.0f, 1.0f));
     glNamedBufferStorage(d.coverage, static_cast<GLsizeiptr>(whole.size() * sizeof(glm::vec4)), whole.data(), 0);
+    if (d.parallax) {
+      const std::vector<glm::vec4> empty(whole.size(), glm::vec4(1.0f, -1.0f, 0.0f, 0.0f));
+      glCreateBuffers(1, &d.depth_range);
+      glNamedBufferStorage(d.depth_range, static_cast<GLsizeiptr>(empty.size() * sizeof(glm::vec4)), empty.data(), 0);
+    }
   }
   auto pb = program(kBillboardVs, kBillboardFs, "impostor shader");
   if (!pb) return pb.error();
@@ -634,7 +780,11 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
            glGetUniformLocation(prog, "u_edges"),
            glGetUniformLocation(prog, "u_samples"),
            glGetUniformLocation(prog, "u_sample_pos"),
-           glGetUniformLocation(prog, "u_taps")};
+           glGetUniformLocation(prog, "u_taps"),
+           glGetUniformLocation(prog, "u_parallax"),
+           glGetUniformLocation(prog, "u_parallax_steps")};
+    glProgramUniform1i(prog, bp->parallax, d.parallax ? 1 : 0);
+    glProgramUniform1i(prog, bp->parallax_steps, std::clamp(config.parallax_steps, 0, 16));
   }
   const GLint psize = static_cast<GLint>(model.palette.size());
   glProgramUniform1i(d.prog_geometry, glGetUniformLocation(d.prog_geometry, "u_palette_size"), psize);
@@ -733,7 +883,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     d.lods.push_back(l);
   }
   glCreateVertexArrays(1, &d.vao_billboard);
-  instance_attribs(d.vao_billboard, d.billboards.id, sizeof(BillboardGpu), 0, 6);
+  instance_attribs(d.vao_billboard, d.billboards.id, sizeof(BillboardGpu), 0, 7);
 
   // The atlas: one RGBA8 layer per page, one depth buffer shared by all pages.
   GLint max_layers = 0, max_size = 0;
@@ -753,6 +903,11 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   if (d.layered) {
     glCreateTextures(GL_TEXTURE_2D_ARRAY, 1, &d.atlas_depth);
     glTextureStorage3D(d.atlas_depth, 1, GL_DEPTH_COMPONENT24, config.page_size, config.page_size, config.max_pages);
+    // Read back by depth-corrected part cards (texel gathers, no comparison).
+    glTextureParameteri(d.atlas_depth, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTextureParameteri(d.atlas_depth, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glTextureParameteri(d.atlas_depth, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTextureParameteri(d.atlas_depth, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
     glNamedFramebufferTexture(d.atlas_fbo, GL_COLOR_ATTACHMENT0, d.atlas, 0);
     glNamedFramebufferTexture(d.atlas_fbo, GL_DEPTH_ATTACHMENT, d.atlas_depth, 0);
   } else {
@@ -812,6 +967,7 @@ Renderer::~Renderer() {
   glDeleteFramebuffers(1, &d.atlas_fbo);
   glDeleteProgram(d.prog_coverage);
   glDeleteBuffers(1, &d.coverage);
+  if (d.depth_range) glDeleteBuffers(1, &d.depth_range);
   if (d.scratch_fbo) {
     glDeleteFramebuffers(1, &d.scratch_fbo);
     glDeleteTextures(1, &d.scratch_color);
@@ -895,6 +1051,10 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
     glProgramUniform3fv(bp.prog, bp.eye, 1, glm::value_ptr(plan.camera.eye));
     glProgramUniform3fv(bp.prog, bp.up, 1, glm::value_ptr(plan.camera.up));
     glBindTextureUnit(2, d.atlas);
+    if (d.parallax) {
+      glBindTextureUnit(4, d.atlas_depth);
+      glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 3, d.depth_range);
+    }
     if (mode == 3 && samples != d.sample_count) {
       // Where this framebuffer's samples lie in the pixel (GL: [0, 1]^2 from its lower left).
       d.sample_count = samples;

@@ -144,6 +144,15 @@ struct ImpostorConfig {
   // cards are planned in chunks on a pool of worker threads (started once, asleep between
   // frames); the plan is the same whatever the number of threads. 1: on the calling thread only.
   unsigned planner_threads = 0;
+  // Depth-corrected part cards (parallax): each card also carries its snapshot's eye (in the
+  // card's frame) and the impostor shader reads the snapshot's depth, so a pixel looks up the
+  // texel whose stored surface point lies on its own eye ray (iterative parallax mapping from the
+  // card plane, a few steps) instead of the texel where the ray meets the plane. Uncovered texels
+  // take the depth of covered neighbours, so silhouettes move with their surface; the quad is
+  // widened by how far the snapshot's depth range shifts on the card. Perspective snapshots with
+  // one sample, on a renderer with layered snapshots only (else ignored).
+  bool parallax_cards = false;
+  int parallax_steps = 3;  // fixed-point steps per pixel
 };
 inline constexpr float kLimbElongation = 2.0f, kLimbFlatness = 1.7f;
 // Index of `w`'s fitted rectangle (ImpostorConfig::fit_quads_to_coverage) in the renderer's list:
@@ -166,6 +175,10 @@ struct BillboardGpu {
   // Part cards (w = 1): the card's half axes in world space (window x and y, metres); w = 0: a
   // quad facing the eye.
   glm::vec4 axis_x{0.0f}, axis_y{0.0f};
+  // Depth-corrected part cards (ImpostorConfig::parallax_cards, z > 0): the snapshot's eye
+  // offset off the axis (x, y) and distance D from the card plane (z), and the part's radius (w),
+  // all in units of the card's half size, so they scale with the carried axes.
+  glm::vec4 snap{0.0f};
 };
 struct SnapshotGpu {
   InstanceGpu instance;
@@ -256,6 +269,7 @@ class FramePlanner {
   struct PartCache {
     glm::vec3 centre{0.0f}, axis_x{0.0f}, axis_y{0.0f};  // centre, half axes (palette space)
     glm::vec3 normal{0.0f, 0.0f, 1.0f};  // Vo of the snapshot (palette space)
+    glm::vec4 snap{0.0f};                // BillboardGpu::snap (parallax_cards)
     std::array<float, 4> posture{};      // the character's posture distances when it was taken
     float half_size = 0.0f;
     glm::vec4 rect{-1, -1, 1, 1};
