@@ -174,7 +174,8 @@ TEST(FlowCli, BadFlagsAreErrors) {
                            "flow --sweep size", "flow --model /nonexistent.glb --frames 1",
                            "flow --impostor-edges soft", "flow --snapshot-lod best", "flow --snapshot-camera fisheye",
                            "flow --refresh-budget -1", "flow --limb-cards round", "flow --snapshot-grid texels",
-                           "flow --snapshot-samples 3", "flow --quad-fit hull", "flow --planner-threads -1"}) {
+                           "flow --snapshot-samples 3", "flow --quad-fit hull", "flow --planner-threads -1",
+                           "flow --card-depth maybe"}) {
     Out o = run(args);
     EXPECT_NE(o.status, 0) << args;
     EXPECT_NE(o.text.find("flow"), std::string::npos) << args << ": " << o.text;

@@ -531,5 +531,62 @@ TEST(CrowdRender, AlignedMultisampledSnapshotsCopyTheGeometry) {
   }
 }
 
+// Depth-corrected part cards (ImpostorConfig::parallax_cards): snapshots taken from one camera,
+// then, the poses held, the camera turned 6 degrees about the crowd (view threshold 30: cards
+// are refreshed only where their window size changes). Each pixel then looks up the texel whose stored surface lies on its own ray, so
+// the cards agree with the geometry better than flat cards do.
+TEST(CrowdRender, DepthCorrectedCardsFollowTheParallax) {
+  REQUIRE_GL();
+  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
+  auto m = load_model(path);
+  ASSERT_TRUE(m.ok());
+  ASSERT_GT(m->body_parts().size(), 1u);
+  Crowd crowd = walker_ring(*m);
+  const SceneCamera a = ring_camera();
+  SceneCamera b = a;
+  const float turn = glm::radians(6.0f);
+  const glm::vec3 d = a.eye - a.target;
+  b.eye = a.target + glm::vec3(std::cos(turn) * d.x + std::sin(turn) * d.z, d.y, -std::sin(turn) * d.x + std::cos(turn) * d.z);
+  DrawOptions blend;
+  blend.edges = ImpostorEdges::kBlend;
+  auto psnr_after_turn = [&](bool parallax) {
+    ImpostorConfig cfg;
+    cfg.part_cards = true;
+    cfg.parallax_cards = parallax;
+    cfg.cache.posture_test = false;
+    cfg.cache.view_threshold_deg = 30.0f;
+    FramePlanner planner(*m, cfg);
+    auto renderer = Renderer::create(*m, cfg);
+    EXPECT_TRUE(renderer.ok()) << renderer.error().message();
+    auto target = OffscreenTarget::create(640, 512, 4);
+    EXPECT_TRUE(target.ok());
+    if (!renderer.ok() || !target.ok()) return 0.0;
+    const float t = 0.3f;
+    (*target)->bind(true);
+    (*renderer)->draw(planner.plan(crowd, a, t, RenderMode::kImpostor), blend);  // the snapshots
+    (*target)->bind(true);
+    const FramePlan& g = planner.plan(crowd, b, t, RenderMode::kGeometry);
+    (*renderer)->draw(g);
+    Image gi{640, 512, (*target)->read_rgba(), g.stats, 0};
+    (*target)->bind(true);
+    const FramePlan& p = planner.plan(crowd, b, t, RenderMode::kImpostor);
+    // Cards drawn from the first camera's snapshots (a few change window size).
+    EXPECT_GT(p.stats.part_cards, 100);
+    EXPECT_LE(p.stats.part_snapshots * 20, p.stats.part_cards);
+    (*renderer)->draw(p, blend);
+    Image ii{640, 512, (*target)->read_rgba(), p.stats, 0};
+    int covered = 0;
+    const double psnr = covered_psnr(gi, ii, &covered);
+    std::printf("part cards %s, camera turned 6 degrees: %d covered pixels, PSNR %.2f dB\n",
+                parallax ? "depth-corrected" : "flat", covered, psnr);
+    EXPECT_GT(covered, 5000);
+    if (parallax) save_ppm_pair(std::string(BB_BIN_DIR) + "/../parallax_cards_CesiumMan.ppm", gi, ii);
+    return psnr;
+  };
+  const double flat = psnr_after_turn(false), corrected = psnr_after_turn(true);
+  EXPECT_GT(corrected, flat + 1.0);  // measured on llvmpipe: 20.85 -> 22.70 dB
+}
+
 }  // namespace
 }  // namespace bb::runtime

@@ -152,7 +152,7 @@ struct ImpostorConfig {
   // widened by how far the snapshot's depth range shifts on the card. Perspective snapshots with
   // one sample, on a renderer with layered snapshots only (else ignored).
   bool parallax_cards = false;
-  int parallax_steps = 3;  // fixed-point steps per pixel
+  int parallax_steps = 2;  // fixed-point steps per pixel (flow test bed: 1 step 27.54 dB, 2 27.73, 3 27.72)
 };
 inline constexpr float kLimbElongation = 2.0f, kLimbFlatness = 1.7f;
 // Index of `w`'s fitted rectangle (ImpostorConfig::fit_quads_to_coverage) in the renderer's list:
