@@ -151,6 +151,10 @@ struct ImpostorConfig {
   // take the depth of covered neighbours, so silhouettes move with their surface; the quad is
   // widened by how far the snapshot's depth range shifts on the card. Perspective snapshots with
   // one sample, on a renderer with layered snapshots only (else ignored).
+  // Flow test bed (20 humans, posture off, llvmpipe), 2 texels per pixel + blending, walking:
+  // 8 degrees 25.87 -> 27.57 dB (1.90x -> 1.31x geometry's speed), 5 degrees 27.48 -> 28.48 dB
+  // (1.58x -> 1.06x); poses held, 8 degrees 25.31 -> 27.73 dB. Off by default: short of 28 dB at
+  // 8 degrees and ~30 % slower on llvmpipe.
   bool parallax_cards = false;
   int parallax_steps = 2;  // fixed-point steps per pixel (flow test bed: 1 step 27.54 dB, 2 27.73, 3 27.72)
 };
