@@ -2,7 +2,9 @@
 // static Registrar, so adding a command touches no other file.
 #pragma once
 
+#include <algorithm>
 #include <functional>
+#include <iostream>
 #include <vector>
 
 #include <CLI/CLI.hpp>
@@ -25,5 +27,22 @@ inline std::vector<CommandEntry>& command_registry() {
 struct Registrar {
   Registrar(int order, AddCommand add) { command_registry().push_back({order, add}); }
 };
+
+// Adds every registered command to `app` (in their --help order), parses the command line and
+// returns the exit status: the command's, or CLI11's for a parse error (never 0 on an error).
+inline int run_command_line(CLI::App& app, int argc, char** argv) {
+  app.require_subcommand(1);
+  int status = 0;
+  auto entries = command_registry();
+  std::sort(entries.begin(), entries.end(), [](auto& a, auto& b) { return a.order < b.order; });
+  for (const auto& e : entries) e.add(app, &status);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    int rc = app.exit(e, std::cout, std::cerr);
+    return e.get_exit_code() == 0 ? 0 : (rc == 0 ? 2 : rc);
+  }
+  return status;
+}
 
 }  // namespace bb::cli

@@ -6,7 +6,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <iostream>
 #include <string>
 
 #include "commands.h"
@@ -22,16 +21,7 @@ Result<std::string> default_flow_model(const std::string&) {
 int main(int argc, char** argv) {
   if (argc >= 2 && std::strcmp(argv[1], "flow") == 0) {
     CLI::App app{"bench_flow: the flow test bed on the runtime alone", "bench_flow"};
-    app.require_subcommand(1);
-    int status = 0;
-    for (const auto& e : bb::cli::command_registry()) e.add(app, &status);  // flow.cpp's `flow`
-    try {
-      app.parse(argc, argv);
-    } catch (const CLI::ParseError& e) {
-      int rc = app.exit(e, std::cout, std::cerr);
-      return e.get_exit_code() == 0 ? 0 : (rc == 0 ? 2 : rc);
-    }
-    return status;
+    return bb::cli::run_command_line(app, argc, argv);  // flow.cpp registers `flow`
   }
   if (argc < 3) {
     std::fprintf(stderr, "usage: bench_flow MODEL.glb OUT_DIR [frames] [sizes, e.g. 20,100,1000,10000]\n");
