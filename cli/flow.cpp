@@ -39,6 +39,8 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   auto r3 = [](float v) { return std::round(static_cast<double>(v) * 1000.0) / 1000.0; };
   j["posture"] = s.posture_test ? ordered_json(r3(s.posture_threshold)) : ordered_json("off");
   j["view_deg"] = s.view_test ? ordered_json(r3(s.view_deg)) : ordered_json("off");
+  j["distance_weighting"] = s.distance_weighting;
+  j["screen_weighting_px"] = s.screen_weighting_px > 0.0f ? ordered_json(r3(s.screen_weighting_px)) : ordered_json("off");
   j["planner_threads"] = s.planner_threads;
   j["geometry_ms"] = r.geometry_ms;
   j["impostor_ms"] = r.impostor_ms;
@@ -76,6 +78,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
     j["part_cards_per_frame"] = r.part_cards;
     j["limb_cards"] = s.turn_limb_cards ? "turn" : "fixed";
     j["card_depth"] = s.parallax_cards ? "on" : "off";
+    j["card_lead"] = s.lead_cards ? "on" : "off";
   }
   auto split = [](const FlowResult::ErrorClass& c) {
     return ordered_json{{"mse", c.mse}, {"pixels", c.pixels}, {"share", c.share}};
@@ -166,6 +169,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (a.card_depth != "on" && a.card_depth != "off")
     return fail("--card-depth: expected on or off (got \"" + a.card_depth + "\")");
   s.parallax_cards = a.card_depth == "on";
+  if (a.card_lead != "on" && a.card_lead != "off")
+    return fail("--card-lead: expected on or off (got \"" + a.card_lead + "\")");
+  s.lead_cards = a.card_lead == "on";
   if (a.snapshot_grid != "pixels" && a.snapshot_grid != "free")
     return fail("--snapshot-grid: expected pixels or free (got \"" + a.snapshot_grid + "\")");
   s.aligned_snapshots = a.snapshot_grid == "pixels";
@@ -180,6 +186,15 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     return fail("--planner-threads: expected 0 (every hardware thread) to 256 (got " + std::to_string(a.planner_threads) + ")");
   s.planner_threads = static_cast<unsigned>(a.planner_threads);
   s.distance_weighting = a.distance_weighting;
+  if (a.screen_weighting == "off") {
+    s.screen_weighting_px = 0.0f;
+  } else {
+    char* end = nullptr;
+    const float px = std::strtof(a.screen_weighting.c_str(), &end);
+    if (a.screen_weighting.empty() || *end != '\0' || !(px > 0.0f && px <= 4096.0f))
+      return fail("--screen-weighting: expected a height in pixels (0 < PX <= 4096) or off (got \"" + a.screen_weighting + "\")");
+    s.screen_weighting_px = px;
+  }
   s.orbit_deg_per_s = a.orbit;
   s.msaa = a.msaa;
   s.texels_per_pixel = a.texels_per_pixel;
@@ -277,8 +292,14 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     for (std::string item; std::getline(ls, item, ',');) counts.push_back(std::atoi(item.c_str()));
     ordered_json scaling = ordered_json::array();
     std::ostringstream csv;
-    csv << "humans,geometry_ms,impostor_ms,ratio,speedup,refresh_fraction\n";
-    Series g{"geometry (ms/frame)", {}, {}, 0xd62728}, im{"impostors (ms/frame)", {}, {}, 0x1f77b4};
+    // With screen-size weighting on (the test bed's default), each size is also run without it,
+    // so the chart shows what the weighting buys.
+    const bool unweighted = s.screen_weighting_px > 0.0f;
+    csv << "humans,geometry_ms,impostor_ms,ratio,speedup,refresh_fraction";
+    if (unweighted) csv << ",unweighted_geometry_ms,unweighted_impostor_ms,unweighted_speedup,unweighted_refresh_fraction";
+    csv << "\n";
+    Series g{"geometry (ms/frame)", {}, {}, 0xd62728}, im{"impostors (ms/frame)", {}, {}, 0x1f77b4},
+        iu{"impostors, no screen weighting (ms/frame)", {}, {}, 0x2ca02c};
     for (int n : counts) {
       if (n <= 0) return fail("--scaling-humans: expected positive counts");
       FlowSettings ss = s;
@@ -289,9 +310,8 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
       auto r = run_flow(*model, ss, device);
       if (!r) return fail(r.error().message());
       ordered_json j = to_json(*r, ss);
-      scaling.push_back(j);
       csv << n << "," << r->geometry_ms << "," << r->impostor_ms << "," << r->ratio << ","
-          << (r->ratio > 0 ? 1 / r->ratio : 0) << "," << r->refresh_fraction << "\n";
+          << (r->ratio > 0 ? 1 / r->ratio : 0) << "," << r->refresh_fraction;
       g.x.push_back(n);
       g.y.push_back(r->geometry_ms);
       im.x.push_back(n);
@@ -299,6 +319,25 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
       if (!a.json)
         std::fprintf(stderr, "  humans %-6d geometry %.2f ms  impostors %.2f ms  speed-up %.2fx\n", n, r->geometry_ms,
                      r->impostor_ms, r->ratio > 0 ? 1 / r->ratio : 0);
+      if (unweighted) {
+        FlowSettings su = ss;
+        su.screen_weighting_px = 0.0f;
+        auto u = run_flow(*model, su, device);
+        if (!u) return fail(u.error().message());
+        j["unweighted"] = {{"geometry_ms", u->geometry_ms},
+                           {"impostor_ms", u->impostor_ms},
+                           {"ratio", u->ratio},
+                           {"refresh_fraction", u->refresh_fraction}};
+        csv << "," << u->geometry_ms << "," << u->impostor_ms << "," << (u->ratio > 0 ? 1 / u->ratio : 0) << ","
+            << u->refresh_fraction;
+        iu.x.push_back(n);
+        iu.y.push_back(u->impostor_ms);
+        if (!a.json)
+          std::fprintf(stderr, "  humans %-6d without screen weighting: geometry %.2f ms  impostors %.2f ms  speed-up %.2fx\n",
+                       n, u->geometry_ms, u->impostor_ms, u->ratio > 0 ? 1 / u->ratio : 0);
+      }
+      csv << "\n";
+      scaling.push_back(j);
     }
     report["scaling"] = scaling;
     std::string base = (fs::path(a.out) / "scaling").string();
@@ -308,6 +347,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     c.y_label = "milliseconds per frame";
     c.log_x = c.log_y = true;
     c.series = {g, im};
+    if (unweighted) c.series.push_back(iu);
     auto img = render_chart(c, 1000, 600);
     for (auto st : {write_text(base + ".csv", csv.str()), write_text(base + ".json", scaling.dump(2) + "\n"),
                     write_png(base + ".png", 1000, 600, img.data())})
@@ -348,6 +388,9 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--posture", a->posture, "Posture threshold (relative) or off")->capture_default_str();
   cmd->add_option("--view", a->view, "View-angle threshold in degrees or off")->capture_default_str();
   cmd->add_flag("--distance-weighting", a->distance_weighting, "Weight both thresholds by distance to the viewer");
+  cmd->add_option("--screen-weighting", a->screen_weighting,
+                  "Weight both thresholds by PX / height on screen for humans shorter than PX pixels, or off")
+      ->capture_default_str();
   cmd->add_option("--orbit", a->orbit, "Camera orbit speed, degrees per second")->capture_default_str();
   cmd->add_option("--msaa", a->msaa, "Samples per pixel of the scene window, both paths (1: none)")
       ->capture_default_str()->check(CLI::IsMember({1, 2, 4, 8}));
@@ -369,6 +412,9 @@ void add_flow_command(CLI::App& app, int* status) {
       ->capture_default_str();
   cmd->add_option("--card-depth", a->card_depth,
                   "With --impostor-parts: depth-corrected cards (each pixel finds the snapshot texel on its own eye ray)")
+      ->capture_default_str();
+  cmd->add_option("--card-lead", a->card_lead,
+                  "With --impostor-parts: each card's snapshot is taken along its part's mean line of sight over the card's coming life (the clip played on)")
       ->capture_default_str();
   cmd->add_option("--snapshot-grid", a->snapshot_grid,
                   "Snapshot texels: pixels (on the screen's pixel grid, exact when taken) or free (section 4.2's camera)")

@@ -31,6 +31,7 @@ struct FlowSettings {
   bool view_test = true;
   float view_deg = 8.0f;
   bool distance_weighting = false;
+  float screen_weighting_px = 32.0f;  // CacheConfig::reference_pixels (0: off)
   float orbit_deg_per_s = 0.0f;  // camera orbit speed
   int quality_every = 4;         // compare images every k-th measured frame
   int msaa = 4;                  // samples per pixel of the scene window (both paths)
@@ -49,6 +50,7 @@ struct FlowSettings {
   int refresh_budget = 0;                   // CacheConfig::refresh_budget (0: no limit)
   bool turn_limb_cards = false;             // ImpostorConfig::turn_limb_cards
   bool parallax_cards = false;              // ImpostorConfig::parallax_cards (depth-corrected cards)
+  bool lead_cards = true;                   // ImpostorConfig::lead_cards
   bool aligned_snapshots = false;           // ImpostorConfig::aligned_snapshots (texels on pixels)
   int snapshot_samples = 1;                 // ImpostorConfig::snapshot_samples
   bool fit_quads = true;                    // ImpostorConfig::fit_quads_to_coverage
@@ -113,6 +115,7 @@ struct FlowArgs {
   std::string model, out = "out/flow", size = "1280x1024", mode = "both", posture = "0.4", view = "8", sweep;
   int humans = 20, frames = 120;
   bool json = false, scaling = false, distance_weighting = false;
+  std::string screen_weighting = "32";
   float orbit = 0;
   int msaa = 4;
   float texels_per_pixel = 1.0f;  // see FlowSettings
@@ -122,6 +125,7 @@ struct FlowArgs {
   int refresh_budget = 0;
   std::string limb_cards = "fixed";
   std::string card_depth = "off";
+  std::string card_lead = "on";
   std::string snapshot_grid = "free";
   int snapshot_samples = 1;
   std::string quad_fit = "coverage";

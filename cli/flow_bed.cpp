@@ -75,6 +75,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   config.cache.view_test = s.view_test;
   config.cache.view_threshold_deg = s.view_deg;
   config.cache.distance_weighting = s.distance_weighting;
+  config.cache.reference_pixels = s.screen_weighting_px;
   config.texels_per_pixel = s.texels_per_pixel;
   config.snapshot_lod_from_screen = s.snapshot_lod_from_screen;
   config.perspective_snapshots = s.perspective_snapshots;
@@ -82,6 +83,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   config.cache.refresh_budget = s.refresh_budget;
   config.turn_limb_cards = s.turn_limb_cards;
   config.parallax_cards = s.parallax_cards;
+  config.lead_cards = s.lead_cards;
   config.aligned_snapshots = s.aligned_snapshots;
   config.snapshot_samples = s.snapshot_samples;
   config.fit_quads_to_coverage = s.fit_quads;

@@ -281,7 +281,7 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
 
   bool as_geometry = !impostor_mode || (mode == RenderMode::kAuto && pixels > switch_px);
   if (!as_geometry && parts_ > 1) {
-    as_geometry = !plan_parts(i, ch, bc, f0, f1, blend, inst, ta, radius, pixels, camera, st);
+    as_geometry = !plan_parts(i, ch, bc, f0, f1, blend, inst, ta, radius, pixels, camera, time, st);
   } else if (!as_geometry) {
     CacheState& cs = cache_[i];
     // Aligned snapshots hold the sphere's whole picture (wider off the axis) at the exact scale.
@@ -329,7 +329,7 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
       const bool must = refresh;  // no usable snapshot: refreshed whatever the budget
       float staleness = 0.0f;
       if (!refresh) {
-        const float w = distance_weight(cc, glm::distance(ta, camera.eye));
+        const float w = distance_weight(cc, glm::distance(ta, camera.eye), pixels);
         if (cc.view_test) {
           const float thr = std::min(glm::radians(cc.view_threshold_deg) * w, 3.14159265f);
           const float cthr = w == 1.0f ? cos_view : std::cos(thr);
@@ -579,7 +579,7 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
 
 bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedClip& bc, int f0, int f1, float blend,
                               const InstanceGpu& inst, const glm::vec3& ta, float radius, float pixels,
-                              const SceneCamera& camera, FrameStats& st) {
+                              const SceneCamera& camera, float time, FrameStats& st) {
   (void)radius;
   const Model& m = *model_;
   const auto parts = m.body_parts();
@@ -653,13 +653,13 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
   // bone, and the current line of sight to the part.
   const CacheConfig& cc = config_.cache;
   const std::array<float, 4> posture = posture_at(bc, f0, f1, blend);
-  const float w = distance_weight(cc, glm::distance(ta, camera.eye));
+  const float w = distance_weight(cc, glm::distance(ta, camera.eye), pixels);
   // A limb card turns about the limb's axis to face the eye (the cylinder's picture does not
   // change); the view test then sees only the change of the angle between that axis and the line
   // of sight.
   for (int p = 0; p < count; ++p) {
     if (!turns[p] || must[p]) continue;
-    const glm::vec3 n = glm::normalize(glm::mat3(bone[p]) * pcs[p].normal);
+    const glm::vec3 n = glm::normalize(glm::mat3(bone[p]) * pcs[p].card_normal);
     const glm::vec3 los = glm::normalize(centre[p] - camera.eye);
     const glm::vec3 a = glm::normalize(glm::mat3(bone[p]) * parts[p].axis);
     const glm::vec3 nq = n - glm::dot(n, a) * a, lq = los - glm::dot(los, a) * a;  // across the axis
@@ -669,6 +669,44 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
   bool by_posture = false, by_view = false;
   const float vthr = std::min(glm::radians(cc.view_threshold_deg) * w, 3.14159265f);
   const float cthr = std::cos(vthr);
+  // Leading cards (ImpostorConfig::lead_cards): the eye in the character's frame now, and its
+  // velocity there since the previous planned frame.
+  const bool lead = config_.lead_cards && cc.view_test && !config_.aligned_snapshots;
+  glm::vec3 eye_char(0.0f), eye_vel(0.0f);
+  if (lead) {
+    eye_char = glm::vec3(glm::inverse(place) * glm::vec4(camera.eye, 1.0f));
+    if (cs.eye_valid && time > cs.eye_time) eye_vel = (eye_char - cs.eye_char) / (time - cs.eye_time);
+    cs.eye_char = eye_char;
+    cs.eye_time = time;
+    cs.eye_valid = true;
+  }
+  // The direction card p's snapshot is taken along (palette space): the mean of the part's line
+  // of sight over the coming frames (the clip played on, the eye carried on at its velocity in the
+  // character's frame) until it has turned by the view threshold from where it is now, the time a
+  // card taken now would last.
+  const auto ahead = [&](int p) {
+    const float clip_len = m.clip_duration(std::clamp(ch.clip, 0, std::max(0, static_cast<int>(m.clips.size()) - 1)));
+    const glm::vec3 c = parts[p].centre;
+    glm::vec3 los0(0.0f), sum(0.0f);
+    for (int k = 0; k <= kLeadSteps; ++k) {
+      const float dt = static_cast<float>(k) * kLeadStep;
+      glm::mat4 pm;
+      if (k == 0) {
+        pm = palette_matrix(pal, np, bc, f0, f1, blend, parts[p].bone);
+      } else {
+        const float fx = clip_time(ch.phase + ch.speed * (time + dt), clip_len, true) * bc.rate;
+        const int g0 = std::min(static_cast<int>(fx), bc.frame_count - 1);
+        const int g1 = std::min(g0 + 1, bc.frame_count - 1);
+        pm = palette_matrix(pal, np, bc, g0, g1, g1 > g0 ? fx - static_cast<float>(g0) : 0.0f, parts[p].bone);
+      }
+      const glm::vec3 e = eye_char + eye_vel * dt;
+      const glm::vec3 los = glm::normalize(glm::inverse(glm::mat3(pm)) * (glm::vec3(pm * glm::vec4(c, 1.0f)) - e));
+      if (k == 0) los0 = los;
+      else if (glm::dot(los, los0) < cthr) break;
+      sum += los;
+    }
+    return glm::normalize(sum);
+  };
   for (int p = 0; p < count; ++p) {
     if (must[p]) continue;
     if (cc.posture_test && posture_changed(pcs[p].posture, posture, cc.posture_threshold * w)) {
@@ -676,9 +714,10 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
       staleness[p] = posture_staleness(pcs[p].posture, posture, cc.posture_threshold * w);
     }
     if (cc.view_test) {
-      const glm::vec3 n = turn[p] * glm::normalize(glm::mat3(bone[p]) * pcs[p].normal);
+      const glm::vec3 n = turn[p] * glm::normalize(glm::mat3(bone[p]) * pcs[p].card_normal);
       const glm::vec3 los = glm::normalize(centre[p] - camera.eye);
-      const float c = glm::dot(n, los);
+      float c = glm::dot(n, los);
+      if (lead) c = std::min(c, glm::dot(turn[p] * glm::normalize(glm::mat3(bone[p]) * pcs[p].normal), los));
       if (c < cthr) {
         by_view |= !due[p];
         due[p] = true;
@@ -715,13 +754,20 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
     };
     if (due[p]) {
       const float r = bp.radius * sc;
-      SnapshotCamera cam = make_snapshot_camera(centre[p], camera.eye, camera.up, r,
+      // A leading card's snapshot eye: as far from the part as the camera, on the mean line of
+      // sight ahead.
+      const glm::vec3 eye = lead ? centre[p] - glm::length(centre[p] - camera.eye) *
+                                                  glm::normalize(glm::mat3(bone[p]) * ahead(p))
+                                 : camera.eye;
+      SnapshotCamera cam = make_snapshot_camera(centre[p], eye, camera.up, r,
                                                 config_.snapshot_distance > 0 ? config_.snapshot_distance * sc : 0.0f,
                                                 config_.perspective_snapshots);
       if (config_.texel_per_pixel && cam.perspective)
         cam.half_size = std::max(cam.half_size, static_cast<float>(win.size) * cam.distance / (2.0f * ppm1));
-      // The line of sight to the part, which the view test follows.
-      const glm::vec3 los = cam.vo;
+      // The snapshot's direction, and the line of sight to the part now, which the view test
+      // also follows (the same without a lead).
+      const glm::vec3 vo = cam.vo;
+      const glm::vec3 los = lead ? glm::normalize(centre[p] - camera.eye) : cam.vo;
       if (config_.aligned_snapshots)
         if (auto a = make_aligned_snapshot_camera(camera, centre[p], r, win.size, config_.texels_per_pixel)) cam = *a;
       // The card at snapshot time (the window's plane through its centre), in the bone's palette
@@ -732,6 +778,7 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
       next.axis_x = glm::vec3(inv * glm::vec4(cam.ho * cam.half_size, 0.0f));
       next.axis_y = glm::vec3(inv * glm::vec4(cam.uo * cam.half_size, 0.0f));
       next.normal = glm::vec3(inv * glm::vec4(los, 0.0f));
+      next.card_normal = glm::vec3(inv * glm::vec4(vo, 0.0f));
       next.half_size = cam.half_size;
       // The snapshot's eye in the card's frame (units of the half size): carried with the axes.
       next.snap = config_.parallax_cards && cam.perspective && config_.snapshot_samples <= 1

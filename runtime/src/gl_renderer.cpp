@@ -169,6 +169,9 @@ flat out vec3 v_eye;   // the eye in the card's frame (window units; z along the
 flat out vec4 v_snap;  // i_snap when corrected, else 0
 flat out vec4 v_rect;  // the part of the window with snapshot texels
 flat out vec4 v_uvbox;
+#ifdef BB_CARD_DEPTH
+flat out vec3 v_card_o, v_card_x, v_card_y, v_card_z;  // the card's frame (world; axes x half size)
+#endif
 void main() {
   vec4 r = i_rect;
   if (i_layer.z > 0.5) {
@@ -209,6 +212,12 @@ void main() {
       r = q;
       v_snap = i_snap;
       v_eye = e;
+#ifdef BB_CARD_DEPTH
+      v_card_o = i_ta_half.xyz;
+      v_card_x = ho * hl;
+      v_card_y = uo * hl;
+      v_card_z = vo * hl;
+#endif
     }
   }
   vec2 c = mix(r.xy, r.zw, vec2(gl_VertexID & 1, gl_VertexID >> 1));
@@ -249,6 +258,10 @@ flat in vec3 v_eye;
 flat in vec4 v_snap;
 flat in vec4 v_rect;
 flat in vec4 v_uvbox;
+#ifdef BB_CARD_DEPTH
+flat in vec3 v_card_o, v_card_x, v_card_y, v_card_z;
+uniform mat4 u_viewproj;
+#endif
 layout(location = 0) out vec4 o_color;
 vec4 tap(vec2 uv) { return texture(u_atlas, vec3(uv, v_uvl.z)); }
 // Snapshot depth (window depth of kSnapshotVs's perspective) -> offset from the card plane along
@@ -281,6 +294,9 @@ float surface_offset(vec2 w, float fallback) {
 void main() {
   vec2 dx = dFdx(v_uvl.xy), dy = dFdy(v_uvl.xy);
   vec2 uv0 = v_uvl.xy;
+#ifdef BB_CARD_DEPTH
+  gl_FragDepth = gl_FragCoord.z;
+#endif
   if (v_snap.z > 0.0) {
     // Depth-corrected card: find the window point w whose snapshot surface point lies on this
     // pixel's eye ray. From the plane point c: the surface's offset t at w, the ray's point at
@@ -294,6 +310,13 @@ void main() {
     }
     if (any(lessThan(w, v_rect.xy)) || any(greaterThan(w, v_rect.zw))) discard;
     uv0 = mix(v_uvbox.xy, v_uvbox.zw, w * 0.5 + 0.5);
+#ifdef BB_CARD_DEPTH
+    // The depth of the snapshot surface found on this pixel's ray, so overlapping cards (at the
+    // joints) hide each other where their surfaces do.
+    vec2 x = c + (c - v_eye.xy) * (t / ez);
+    vec4 clip = u_viewproj * vec4(v_card_o + x.x * v_card_x + x.y * v_card_y + t * v_card_z, 1.0);
+    gl_FragDepth = clamp(0.5 + 0.5 * clip.z / clip.w, 0.0, 1.0);
+#endif
   }
 #ifdef BB_PER_SAMPLE
   {
@@ -525,6 +548,7 @@ struct Renderer::Impl {
   // Depth-corrected part cards (ImpostorConfig::parallax_cards, layered snapshots with one sample):
   // the covered depth range per coverage slot.
   bool parallax = false;
+  bool card_depth = false;  // depth-corrected cards write their surface depth (BB_CARD_DEPTH)
   GLuint depth_range = 0;
   bool fits_due = false;  // a snapshot of this frame wants its rectangle
   // DrawOptions::time_stages: timestamps at the start and after snapshots, coverage, geometry,
@@ -764,12 +788,16 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
       glNamedBufferStorage(d.depth_range, static_cast<GLsizeiptr>(empty.size() * sizeof(glm::vec4)), empty.data(), 0);
     }
   }
-  auto pb = program(kBillboardVs, kBillboardFs, "impostor shader");
+  std::string bvs = kBillboardVs, bfs = kBillboardFs;
+  d.card_depth = d.parallax;
+  if (d.card_depth)
+    for (std::string* src : {&bvs, &bfs}) src->insert(src->find('\n') + 1, "#define BB_CARD_DEPTH 1\n");
+  auto pb = program(bvs, bfs, "impostor shader");
   if (!pb) return pb.error();
   d.prog_billboard = *pb;
-  std::string per_sample = kBillboardFs;
+  std::string per_sample = bfs;
   per_sample.insert(per_sample.find('\n') + 1, "#define BB_PER_SAMPLE 1\n");
-  auto pbs = program(kBillboardVs, per_sample, "impostor shader (per sample)");
+  auto pbs = program(bvs, per_sample, "impostor shader (per sample)");
   if (!pbs) return pbs.error();
   d.prog_billboard_samples = *pbs;
   for (auto [prog, bp] : {std::pair{d.prog_billboard, &d.bb}, std::pair{d.prog_billboard_samples, &d.bb_samples}}) {

@@ -125,6 +125,18 @@ TEST(DistanceWeight, GrowsBeyondReference) {
   EXPECT_FLOAT_EQ(distance_weight(c, 30.0f), 3.0f);
 }
 
+TEST(DistanceWeight, ScreenSizeWeightsSmallCharacters) {
+  CacheConfig c;
+  EXPECT_FLOAT_EQ(distance_weight(c, 50.0f, 4.0f), 1.0f);  // off by default
+  c.reference_pixels = 32.0f;
+  EXPECT_FLOAT_EQ(distance_weight(c, 50.0f, 64.0f), 1.0f);  // taller than the reference
+  EXPECT_FLOAT_EQ(distance_weight(c, 50.0f, 8.0f), 4.0f);
+  EXPECT_FLOAT_EQ(distance_weight(c, 50.0f, 0.0f), 1.0f);  // no size known
+  c.distance_weighting = true;  // both: the larger weight
+  EXPECT_FLOAT_EQ(distance_weight(c, 50.0f, 16.0f), 5.0f);
+  EXPECT_FLOAT_EQ(distance_weight(c, 20.0f, 4.0f), 8.0f);
+}
+
 TEST(WindowChoice, SmallestThatHolds) {
   WindowSizes w;
   EXPECT_EQ(choose_window(w, 400.0f), 0);
@@ -654,6 +666,49 @@ Model pole_model() {
   lod.primitives = {Primitive{0, static_cast<std::uint32_t>(lod.indices.size()), 0}};
   m.bake(60.0f);
   return m;
+}
+
+// Leading part cards (ImpostorConfig::lead_cards): the pole bends towards a camera at its side
+// (45 degrees a second, 1.5 degrees a frame at 30 frames a second), so its card tilts out of the
+// line of sight. Taken along the mean line of sight over its coming life, the card is seen from
+// both sides of its snapshot: the mean tilt falls, as many snapshots are taken, and no card is
+// seen further off than the threshold (plus one frame's turn).
+TEST(BodyParts, LeadingCardsAreSeenFromBothSides) {
+  Model m = pole_model();
+  Crowd crowd(m);
+  crowd.add(Character{glm::vec3(0, 0, 0), 0.0f, 1.0f, 0, 0.0f, 0.5f});
+  SceneCamera cam;
+  cam.eye = {30.0f, 1.5f, 0.0f};
+  cam.target = {0.0f, 1.5f, 0.0f};
+  ImpostorConfig cfg;
+  cfg.part_cards = true;
+  cfg.cache.posture_test = false;
+  cfg.cache.view_threshold_deg = 8.0f;
+  double mean[2] = {0, 0}, most[2] = {0, 0};
+  int snapshots[2] = {0, 0};
+  for (int lead = 0; lead < 2; ++lead) {
+    cfg.lead_cards = lead == 1;
+    FramePlanner planner(m, cfg);
+    const int frames = 56;  // within the clip's first play (it loops after 2 s at half speed)
+    for (int f = 0; f < frames; ++f) {
+      const FramePlan& p = planner.plan(crowd, cam, static_cast<float>(f) / 30.0f, RenderMode::kImpostor);
+      ASSERT_EQ(p.billboards.size(), 2u);
+      if (f > 0) snapshots[lead] += p.stats.part_snapshots;
+      const BillboardGpu& arm = p.billboards[1];
+      const glm::vec3 n = glm::normalize(glm::cross(glm::vec3(arm.axis_y), glm::vec3(arm.axis_x)));
+      const glm::vec3 los = glm::normalize(glm::vec3(arm.ta_half) - cam.eye);
+      const double tilt = glm::degrees(std::acos(std::clamp(glm::dot(n, los), -1.0f, 1.0f)));
+      mean[lead] += tilt / frames;
+      most[lead] = std::max(most[lead], tilt);
+    }
+  }
+  EXPECT_GT(mean[0], 3.0);  // without a lead: 0 to 7.5 degrees, refreshed past 8
+  // With a lead: -3.75 to 3.75 degrees (mean 2.25 against 3.75 in steps of 1.5).
+  EXPECT_LT(mean[1], 0.65 * mean[0]) << mean[0] << " " << mean[1];
+  EXPECT_LE(snapshots[1], snapshots[0] + 1);
+  EXPECT_GE(snapshots[0], 8);  // 1.5 degrees a frame, past 8 degrees: every sixth frame
+  EXPECT_LT(most[0], 8.0 + 1.6);
+  EXPECT_LT(most[1], 8.0 + 1.6);
 }
 
 TEST(BodyParts, LimbCardsTurnAboutTheLimbAxis) {

@@ -157,6 +157,15 @@ struct ImpostorConfig {
   // 8 degrees and ~30 % slower on llvmpipe.
   bool parallax_cards = false;
   int parallax_steps = 2;  // fixed-point steps per pixel (flow test bed: 1 step 27.54 dB, 2 27.73, 3 27.72)
+  // Leading part cards: a card's snapshot is taken along the mean of its part's line of sight
+  // (in the bone's frame) over the time the card will last, found by playing the clip on and
+  // carrying the eye on at its velocity in the character's frame until the line of sight has
+  // turned by the view threshold, instead of along the line of sight of the moment. Between
+  // refreshes the card is then seen from both sides of its snapshot. The view test fires when
+  // the line of sight has turned by the threshold since the snapshot was taken (so cards are
+  // refreshed as often as without a lead) or lies the threshold away from the snapshot's own
+  // direction (a card is never seen further off than the threshold).
+  bool lead_cards = true;
 };
 inline constexpr float kLimbElongation = 2.0f, kLimbFlatness = 1.7f;
 // Index of `w`'s fitted rectangle (ImpostorConfig::fit_quads_to_coverage) in the renderer's list:
@@ -236,6 +245,9 @@ class FramePlanner {
  public:
   // Crowds from this size on are planned on ImpostorConfig::planner_threads threads.
   static constexpr std::size_t kParallelCharacters = 512;
+  // Leading part cards: the look-ahead's step (seconds) and its most steps.
+  static constexpr float kLeadStep = 1.0f / 30.0f;
+  static constexpr int kLeadSteps = 45;
   FramePlanner(const Model& model, const ImpostorConfig& config = {});
 
   // Plans one frame of `crowd` (of this planner's model) seen by `camera` at scene time `time`
@@ -268,11 +280,17 @@ class FramePlanner {
     glm::vec4 rect{-1, -1, 1, 1};  // part of the window the last snapshot used
     AtlasWindow window;
     bool valid = false;
+    // Leading part cards (ImpostorConfig::lead_cards): the eye in the character's frame at the
+    // last planned frame, and that frame's time.
+    glm::vec3 eye_char{0.0f};
+    float eye_time = 0.0f;
+    bool eye_valid = false;
   };
   // Part cards: per character and part, the card in the bone's palette space at snapshot time.
   struct PartCache {
     glm::vec3 centre{0.0f}, axis_x{0.0f}, axis_y{0.0f};  // centre, half axes (palette space)
-    glm::vec3 normal{0.0f, 0.0f, 1.0f};  // Vo of the snapshot (palette space)
+    glm::vec3 normal{0.0f, 0.0f, 1.0f};  // line of sight to the part when it was taken (palette space)
+    glm::vec3 card_normal{0.0f, 0.0f, 1.0f};  // Vo of the snapshot (palette space; = normal without a lead)
     glm::vec4 snap{0.0f};                // BillboardGpu::snap (parallax_cards)
     std::array<float, 4> posture{};      // the character's posture distances when it was taken
     float half_size = 0.0f;
@@ -350,7 +368,7 @@ class FramePlanner {
   // atlas is full (the character is then drawn as geometry).
   bool plan_parts(std::size_t i, const Character& ch, const BakedClip& bc, int f0, int f1, float blend,
                   const InstanceGpu& inst, const glm::vec3& ta, float radius, float pixels, const SceneCamera& camera,
-                  FrameStats& st);
+                  float time, FrameStats& st);
   FramePlan plan_;
 };
 

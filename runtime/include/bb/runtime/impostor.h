@@ -3,6 +3,7 @@
 // (section 4.3) and the allocator of windows in shared atlas pages.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <optional>
@@ -99,9 +100,17 @@ struct CacheConfig {
   float posture_threshold = 0.4f;
   bool view_test = true;
   float view_threshold_deg = 8.0f;  // degrees
-  // Optional distance weighting of both thresholds: threshold * max(1, distance / reference).
+  // Optional distance weighting of both thresholds (the paper's): threshold * max(1, distance /
+  // reference_distance).
   bool distance_weighting = false;
   float reference_distance = 10.0f;  // metres
+  // Optional screen-size weighting of both thresholds: threshold * max(1, reference_pixels /
+  // the character's height on screen in pixels) (0: off). The paper's distance weighting tied to
+  // the picture instead of to metres: a character shorter than reference_pixels is refreshed as
+  // if its changes were scaled up to that height, so a 5-pixel walker is not re-drawn every half
+  // step for a sub-pixel change of pose. Thresholds of 0 stay 0. Where both are on, the larger
+  // weight counts.
+  float reference_pixels = 0.0f;
   // The paper's section 7, item 1: a crowd-level refresh policy for a quasi-constant frame rate.
   // At most this many impostors are refreshed per frame (0: no limit). Impostors without a usable
   // snapshot (new, or their window size class changed) are always refreshed and count first;
@@ -114,11 +123,13 @@ struct CacheConfig {
   int refresh_budget = 0;
 };
 
-// Multiplier of the thresholds for a character `distance` metres from the eye.
-inline float distance_weight(const CacheConfig& c, float distance) {
-  if (!c.distance_weighting || !(c.reference_distance > 0.0f)) return 1.0f;
-  float w = distance / c.reference_distance;
-  return w > 1.0f ? w : 1.0f;
+// Multiplier of the thresholds for a character `distance` metres from the eye, `pixels` tall on
+// screen (CacheConfig::distance_weighting, reference_pixels); 1 when neither is on.
+inline float distance_weight(const CacheConfig& c, float distance, float pixels = 0.0f) {
+  float w = 1.0f;
+  if (c.distance_weighting && c.reference_distance > 0.0f) w = std::max(w, distance / c.reference_distance);
+  if (c.reference_pixels > 0.0f && pixels > 0.0f) w = std::max(w, c.reference_pixels / pixels);
+  return w;
 }
 
 // Section 5.1: true when any pair's squared distance changed by more than `threshold` relative
