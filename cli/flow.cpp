@@ -77,7 +77,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
     j["impostor_parts"] = r.parts;
     j["part_cards_per_frame"] = r.part_cards;
     j["limb_cards"] = s.turn_limb_cards ? "turn" : "fixed";
-    j["card_depth"] = s.parallax_cards ? "on" : "off";
+    j["card_depth"] = s.parallax_depth_pass ? "pass" : s.parallax_cards ? "on" : "off";
     j["card_lead"] = s.lead_cards ? "on" : "off";
   }
   auto split = [](const FlowResult::ErrorClass& c) {
@@ -166,9 +166,10 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (a.limb_cards != "turn" && a.limb_cards != "fixed")
     return fail("--limb-cards: expected turn or fixed (got \"" + a.limb_cards + "\")");
   s.turn_limb_cards = a.limb_cards == "turn";
-  if (a.card_depth != "on" && a.card_depth != "off")
-    return fail("--card-depth: expected on or off (got \"" + a.card_depth + "\")");
-  s.parallax_cards = a.card_depth == "on";
+  if (a.card_depth != "on" && a.card_depth != "off" && a.card_depth != "pass")
+    return fail("--card-depth: expected on, pass or off (got \"" + a.card_depth + "\")");
+  s.parallax_cards = a.card_depth != "off";
+  s.parallax_depth_pass = a.card_depth == "pass";
   if (a.card_lead != "on" && a.card_lead != "off")
     return fail("--card-lead: expected on or off (got \"" + a.card_lead + "\")");
   s.lead_cards = a.card_lead == "on";
@@ -411,7 +412,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "With --impostor-parts: limb cards turn about the limb's axis to face the eye, or stay fixed to the bone")
       ->capture_default_str();
   cmd->add_option("--card-depth", a->card_depth,
-                  "With --impostor-parts: depth-corrected cards (each pixel finds the snapshot texel on its own eye ray)")
+                  "With --impostor-parts: depth-corrected cards (each pixel finds the snapshot texel on its own eye ray); pass: blended cards also get a depth pass (per-pixel order at the joints, slower)")
       ->capture_default_str();
   cmd->add_option("--card-lead", a->card_lead,
                   "With --impostor-parts: each card's snapshot is taken along its part's mean line of sight over the card's coming life (the clip played on)")

@@ -50,6 +50,7 @@ struct FlowSettings {
   int refresh_budget = 0;                   // CacheConfig::refresh_budget (0: no limit)
   bool turn_limb_cards = false;             // ImpostorConfig::turn_limb_cards
   bool parallax_cards = false;              // ImpostorConfig::parallax_cards (depth-corrected cards)
+  bool parallax_depth_pass = false;         // ImpostorConfig::parallax_depth_pass
   bool lead_cards = true;                   // ImpostorConfig::lead_cards
   bool aligned_snapshots = false;           // ImpostorConfig::aligned_snapshots (texels on pixels)
   int snapshot_samples = 1;                 // ImpostorConfig::snapshot_samples
