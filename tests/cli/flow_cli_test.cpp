@@ -175,7 +175,8 @@ TEST(FlowCli, BadFlagsAreErrors) {
                            "flow --impostor-edges soft", "flow --snapshot-lod best", "flow --snapshot-camera fisheye",
                            "flow --refresh-budget -1", "flow --limb-cards round", "flow --snapshot-grid texels",
                            "flow --snapshot-samples 3", "flow --quad-fit hull", "flow --planner-threads -1",
-                           "flow --card-depth maybe"}) {
+                           "flow --card-depth maybe", "flow --card-lead maybe", "flow --screen-weighting 0",
+                           "flow --screen-weighting tall"}) {
     Out o = run(args);
     EXPECT_NE(o.status, 0) << args;
     EXPECT_NE(o.text.find("flow"), std::string::npos) << args << ": " << o.text;
@@ -201,6 +202,17 @@ TEST(DemoCli, WritesTheLodSetFramesChartsAndReport) {
   const int budget = j["refresh_budget"]["capped"]["refresh_budget"].get<int>();
   EXPECT_GT(budget, 0);
   EXPECT_LE(j["refresh_budget"]["capped"]["snapshots_max"].get<int>(), budget);
+  // Crowd sizes with the screen-size weighting, and each without it: the weighting never refreshes
+  // more, and refreshes less once humans are small (1,000 humans are 10-30 pixels tall).
+  ASSERT_GE(j["scaling"].size(), 2u);
+  for (const auto& r : j["scaling"]) {
+    ASSERT_TRUE(r.contains("unweighted")) << r.dump();
+    EXPECT_LE(r["refresh_fraction"].get<double>(), r["unweighted"]["refresh_fraction"].get<double>() + 1e-9);
+  }
+  const auto& largest = j["scaling"].back();
+  EXPECT_LT(largest["refresh_fraction"].get<double>(), 0.5 * largest["unweighted"]["refresh_fraction"].get<double>());
+  EXPECT_EQ(j["part_cards_quality"]["card_depth"], "pass");
+  EXPECT_EQ(j["part_cards_quality"]["card_lead"], "on");
   std::ifstream md(d / "report.md");
   const std::string report((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
   EXPECT_NE(report.find("## Refresh budget"), std::string::npos);

@@ -172,7 +172,10 @@ struct ImpostorConfig {
   // refreshes the card is then seen from both sides of its snapshot. The view test fires when
   // the line of sight has turned by the threshold since the snapshot was taken (so cards are
   // refreshed as often as without a lead) or lies the threshold away from the snapshot's own
-  // direction (a card is never seen further off than the threshold).
+  // direction (a card is never seen further off than the threshold). Flow test bed (20 humans,
+  // walking, posture off, 8 degrees, 120 frames): mean tilt of the drawn cards 5.5 -> 3.6 degrees,
+  // PSNR +0.54 dB (test bed defaults), +0.28 dB (2 texels, blending, depth-corrected), the same
+  // refresh fraction (0.203 -> 0.205) and speed.
   bool lead_cards = true;
 };
 inline constexpr float kLimbElongation = 2.0f, kLimbFlatness = 1.7f;

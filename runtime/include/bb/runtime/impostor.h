@@ -109,7 +109,9 @@ struct CacheConfig {
   // the picture instead of to metres: a character shorter than reference_pixels is refreshed as
   // if its changes were scaled up to that height, so a 5-pixel walker is not re-drawn every half
   // step for a sub-pixel change of pose. Thresholds of 0 stay 0. Where both are on, the larger
-  // weight counts.
+  // weight counts. Flow test bed (posture 0.4, view 8 degrees, llvmpipe), 32 pixels: 10,000
+  // humans 8.7x -> 34.9x geometry's speed (refresh fraction 0.11 -> 0); 1,000 humans 7.6x -> 12.4x
+  // at 16.93 -> 16.06 dB; 20 humans (75-100 pixels tall) unchanged.
   float reference_pixels = 0.0f;
   // The paper's section 7, item 1: a crowd-level refresh policy for a quasi-constant frame rate.
   // At most this many impostors are refreshed per frame (0: no limit). Impostors without a usable
