@@ -64,7 +64,8 @@ struct Canvas {
 std::string fmt(double v) {
   char b[32];
   double a = std::abs(v);
-  if (a >= 1000 || (a > 0 && a < 0.01)) std::snprintf(b, sizeof b, "%.3g", v);
+  if (a >= 1000 && a < 1e7 && v == std::floor(v)) std::snprintf(b, sizeof b, "%.0f", v);  // 10000, not 1e+04
+  else if (a >= 1000 || (a > 0 && a < 0.01)) std::snprintf(b, sizeof b, "%.3g", v);
   else if (a >= 10) std::snprintf(b, sizeof b, "%.0f", v);
   else std::snprintf(b, sizeof b, "%.2g", v);
   return b;
@@ -123,7 +124,8 @@ std::vector<unsigned char> render_chart(const Chart& c, int width, int height) {
     float x = sx(v);
     cv.line(x, static_cast<float>(top), x, top + ph, 0xe4e4e4, 1);
     std::string s = fmt(v);
-    cv.text(x - Canvas::text_width(s) / 2, top + ph + 8, s, 0x444444);
+    const float w = Canvas::text_width(s);  // centred under its tick, kept inside the picture
+    cv.text(std::clamp(x - w / 2, 2.0f, static_cast<float>(width) - w - 2.0f), top + ph + 8, s, 0x444444);
   }
   for (double v : yt) {
     float y = sy(v);

@@ -294,6 +294,36 @@ TEST(FramePlanner, CacheTestsDriveSnapshots) {
   EXPECT_EQ(planner.plan(crowd, cam, 0.26f, RenderMode::kImpostor).stats.snapshots, 5);
 }
 
+// Screen-size weighting (CacheConfig::reference_pixels): a character 30 m away and one 300 m away
+// (ten times smaller on screen) both turn. Without the weighting both are refreshed past 8
+// degrees; with a reference of 4 times the far one's size, the far one's threshold is 32 degrees
+// and the near one's stays 8.
+TEST(FramePlanner, ScreenWeightingSparesSmallCharacters) {
+  Model m = tiny_model();
+  Crowd crowd(m);
+  crowd.add(Character{glm::vec3(0, 0, 0), 0.0f, 1.0f, 0, 0.0f, 0.0f});
+  crowd.add(Character{glm::vec3(0, 0, -270.0f), 0.0f, 1.0f, 0, 0.0f, 0.0f});
+  const SceneCamera cam = facing_camera(30.0f);
+  const float far_px = 2.0f * m.radius * cam.pixels_per_metre(300.0f);
+  ASSERT_GT(far_px, 1.0f);
+  for (float reference : {0.0f, 4.0f * far_px}) {
+    ImpostorConfig cfg = view_test_only(8.0f);
+    cfg.cache.reference_pixels = reference;
+    FramePlanner planner(m, cfg);
+    for (auto& c : crowd.characters()) c.yaw = 0.0f;
+    EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.snapshots, 2);
+    for (auto& c : crowd.characters()) c.yaw = glm::radians(9.0f);
+    const FrameStats a = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+    EXPECT_EQ(a.snapshots, reference > 0.0f ? 1 : 2) << reference;
+    const FramePlan& p = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+    EXPECT_EQ(p.stats.snapshots, 0);
+    for (auto& c : crowd.characters()) c.yaw = glm::radians(31.0f);  // far: 31 degrees since its snapshot
+    EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.snapshots, reference > 0.0f ? 1 : 2);
+    for (auto& c : crowd.characters()) c.yaw = glm::radians(33.0f);  // far: 33 degrees, past 32
+    EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.snapshots, reference > 0.0f ? 1 : 0);
+  }
+}
+
 // The paper's section 7, item 1: at most `refresh_budget` impostors refreshed per frame, the
 // stalest first, the others kept one more frame; new impostors are refreshed whatever the budget.
 TEST(FramePlanner, RefreshBudgetServesTheStalestFirst) {

@@ -105,7 +105,7 @@ struct CacheConfig {
   bool distance_weighting = false;
   float reference_distance = 10.0f;  // metres
   // Optional screen-size weighting of both thresholds: threshold * max(1, reference_pixels /
-  // the character's height on screen in pixels) (0: off). The paper's distance weighting tied to
+  // the character's size on screen in pixels, its bounding sphere's diameter) (0: off). The paper's distance weighting tied to
   // the picture instead of to metres: a character shorter than reference_pixels is refreshed as
   // if its changes were scaled up to that height, so a 5-pixel walker is not re-drawn every half
   // step for a sub-pixel change of pose. Thresholds of 0 stay 0. Where both are on, the larger
