@@ -228,7 +228,7 @@ int run_demo(const std::string& dir, int frames, bool full) {
      << " |\n\n";
   md << "Cards are taken along their part's mean line of sight over their coming life (`--card-lead on`, the "
         "default). The best-quality setting reaches 28 dB at 8 degrees over 120 frames (docs/results.md) but is "
-        "no faster than geometry on llvmpipe, where the impostor path is fill-bound.\n\n";
+        "only about as fast as geometry on llvmpipe, where the impostor path is fill-bound.\n\n";
   md << "## Refresh budget (`budget/`)\n\nThe paper's other future work: the cache considers the crowd as a whole "
         "for a steadier frame rate. At most N impostors are refreshed per frame, the stalest first "
         "(`--refresh-budget N`). " << budget_free["humans"].get<int>() << " humans; the camera orbits at 30 degrees per second, posture threshold "

@@ -148,9 +148,10 @@ struct ImpostorConfig {
   // card's frame) and the impostor shader reads the snapshot's depth, so a pixel looks up the
   // texel whose stored surface point lies on its own eye ray (iterative parallax mapping from the
   // card plane, a few steps) instead of the texel where the ray meets the plane. Uncovered texels
-  // take the depth of covered neighbours, so silhouettes move with their surface; the quad is
-  // widened by how far the snapshot's depth range shifts on the card. Perspective snapshots with
-  // one sample, on a renderer with layered snapshots only (else ignored).
+  // take the depth of covered neighbours, so silhouettes move with their surface (within the
+  // quad fitted to the coverage: widening it by the depth range's shift cost 14 % of the card pass
+  // for no measured gain). Perspective snapshots with one sample, on a renderer with layered
+  // snapshots only (else ignored).
   // Flow test bed (20 humans, posture off, llvmpipe), 2 texels per pixel + blending, walking:
   // 8 degrees 25.87 -> 27.57 dB (1.90x -> 1.31x geometry's speed), 5 degrees 27.48 -> 28.48 dB
   // (1.58x -> 1.06x); poses held, 8 degrees 25.31 -> 27.73 dB. Off by default: short of 28 dB at
@@ -162,8 +163,8 @@ struct ImpostorConfig {
   // depth (a soft edge would hide the card behind it); with parallax_depth_pass they are drawn
   // twice: the opaque texels' depth first, then the colours, blended where they are not behind
   // it. Flow test bed, 120 frames, walking, 8 degrees, 2 texels per pixel, blended, leading
-  // cards: 27.71 -> 28.08 dB (interior squared error 60 -> 48), but the second pass over every
-  // card costs 34 % of the impostor frame on llvmpipe (0.795 -> 1.063 of geometry's time).
+  // cards: 27.73 -> 28.10 dB (interior squared error 60 -> 48), but the second pass over every
+  // card costs about a third of the impostor frame on llvmpipe (1.43x -> 1.05x geometry's speed).
   bool parallax_depth_pass = false;
   // Leading part cards: a card's snapshot is taken along the mean of its part's line of sight
   // (in the bone's frame) over the time the card will last, found by playing the clip on and
