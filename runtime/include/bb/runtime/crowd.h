@@ -154,8 +154,9 @@ struct ImpostorConfig {
   // snapshots only (else ignored).
   // Flow test bed (20 humans, posture off, llvmpipe), 2 texels per pixel + blending, walking:
   // 8 degrees 25.87 -> 27.57 dB (1.90x -> 1.31x geometry's speed), 5 degrees 27.48 -> 28.48 dB
-  // (1.58x -> 1.06x); poses held, 8 degrees 25.31 -> 27.73 dB. Off by default: short of 28 dB at
-  // 8 degrees and ~30 % slower on llvmpipe.
+  // (1.58x -> 1.06x); poses held, 8 degrees 25.31 -> 27.73 dB (sixth session). With leading
+  // cards and the quads no longer widened, 120 frames: 8 degrees 27.73 dB at 1.43x, 28.10 dB at
+  // 1.05x with parallax_depth_pass. Off by default: slower on llvmpipe, where cards are fill.
   bool parallax_cards = false;
   int parallax_steps = 2;  // fixed-point steps per pixel (flow test bed: 1 step 27.54 dB, 2 27.73, 3 27.72)
   // Depth-corrected cards write the depth of the surface they show, so with alpha-to-coverage
