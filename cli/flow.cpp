@@ -187,15 +187,11 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     return fail("--planner-threads: expected 0 (every hardware thread) to 256 (got " + std::to_string(a.planner_threads) + ")");
   s.planner_threads = static_cast<unsigned>(a.planner_threads);
   s.distance_weighting = a.distance_weighting;
-  if (a.screen_weighting == "off") {
-    s.screen_weighting_px = 0.0f;
-  } else {
-    char* end = nullptr;
-    const float px = std::strtof(a.screen_weighting.c_str(), &end);
-    if (a.screen_weighting.empty() || *end != '\0' || !(px > 0.0f && px <= 4096.0f))
-      return fail("--screen-weighting: expected a height in pixels (0 < PX <= 4096) or off (got \"" + a.screen_weighting + "\")");
-    s.screen_weighting_px = px;
-  }
+  bool screen_weighting = false;
+  float px = 0.0f;
+  if (!parse_threshold(a.screen_weighting, &screen_weighting, &px) || (screen_weighting && !(px > 0.0f && px <= 4096.0f)))
+    return fail("--screen-weighting: expected a height in pixels (0 < PX <= 4096) or off (got \"" + a.screen_weighting + "\")");
+  s.screen_weighting_px = screen_weighting ? px : 0.0f;
   s.orbit_deg_per_s = a.orbit;
   s.msaa = a.msaa;
   s.texels_per_pixel = a.texels_per_pixel;

@@ -182,6 +182,22 @@ void add_stats(FrameStats& a, const FrameStats& b) {
   a.quad_texels += b.quad_texels;
 }
 
+// Character `ch`'s clip and the baked frames around its clip time at scene time `time`.
+struct BakedFrames {
+  int clip = 0, f0 = 0, f1 = 0;
+  float blend = 0.0f;  // f0 -> f1
+};
+BakedFrames baked_frames(const Model& m, const Character& ch, float time) {
+  BakedFrames b;
+  b.clip = m.clips.empty() ? 0 : std::clamp(ch.clip, 0, static_cast<int>(m.clips.size()) - 1);
+  const BakedClip& bc = m.baked_clips()[b.clip];
+  const float fx = clip_time(ch.phase + ch.speed * time, m.clip_duration(b.clip), true) * bc.rate;
+  b.f0 = std::min(static_cast<int>(fx), bc.frame_count - 1);
+  b.f1 = std::min(b.f0 + 1, bc.frame_count - 1);
+  b.blend = b.f1 > b.f0 ? fx - static_cast<float>(b.f0) : 0.0f;
+  return b;
+}
+
 }  // namespace
 
 void FramePlanner::Chunk::clear(std::size_t lods) {
@@ -204,13 +220,8 @@ unsigned FramePlanner::planner_threads() {
 }
 
 glm::vec3 character_ta(const Model& m, const Character& ch, float time) {
-  const auto baked = m.baked_clips();
-  const int clip = m.clips.empty() ? 0 : std::clamp(ch.clip, 0, static_cast<int>(m.clips.size()) - 1);
-  const BakedClip& bc = baked[clip];
-  const float fx = clip_time(ch.phase + ch.speed * time, m.clip_duration(clip), true) * bc.rate;
-  const int f0 = std::min(static_cast<int>(fx), bc.frame_count - 1);
-  const int f1 = std::min(f0 + 1, bc.frame_count - 1);
-  const float blend = f1 > f0 ? fx - static_cast<float>(f0) : 0.0f;
+  const auto [clip, f0, f1, blend] = baked_frames(m, ch, time);
+  const BakedClip& bc = m.baked_clips()[clip];
   const glm::vec2 travel = bc.root_offset[f0] + (bc.root_offset[f1] - bc.root_offset[f0]) * blend;
   const glm::vec3 l = (m.ta + glm::vec3(travel.x, 0.0f, travel.y)) * ch.scale;
   const float cy = std::cos(ch.yaw), sy = std::sin(ch.yaw);
@@ -255,16 +266,11 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
   const int lods = static_cast<int>(m.lods.size());
   const auto& window_lod = fs.window_lod;
   FrameStats& st = *out.st;
-    const float radius = m.radius * ch.scale;
+  const float radius = m.radius * ch.scale;
   const float cy = std::cos(ch.yaw), sy = std::sin(ch.yaw);
   // Animation state: baked frames around the character's clip time.
-  const int clip = m.clips.empty() ? 0 : std::clamp(ch.clip, 0, static_cast<int>(m.clips.size()) - 1);
+  const auto [clip, f0, f1, blend] = baked_frames(m, ch, time);
   const BakedClip& bc = baked[clip];
-  const float t = clip_time(ch.phase + ch.speed * time, m.clip_duration(clip), true);
-  const float fx = t * bc.rate;
-  const int f0 = std::min(static_cast<int>(fx), bc.frame_count - 1);
-  const int f1 = std::min(f0 + 1, bc.frame_count - 1);
-  const float blend = f1 > f0 ? fx - static_cast<float>(f0) : 0.0f;
   const glm::vec2 travel = bc.root_offset[f0] + (bc.root_offset[f1] - bc.root_offset[f0]) * blend;
   const glm::vec3 ta_local = (m.ta + glm::vec3(travel.x, 0.0f, travel.y)) * ch.scale;
   const glm::vec3 ta = ch.position + glm::vec3(cy * ta_local.x + sy * ta_local.z, ta_local.y, -sy * ta_local.x + cy * ta_local.z);
@@ -685,20 +691,12 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
   // character's frame) until it has turned by the view threshold from where it is now, the time a
   // card taken now would last.
   const auto ahead = [&](int p) {
-    const float clip_len = m.clip_duration(std::clamp(ch.clip, 0, std::max(0, static_cast<int>(m.clips.size()) - 1)));
     const glm::vec3 c = parts[p].centre;
     glm::vec3 los0(0.0f), sum(0.0f);
     for (int k = 0; k <= kLeadSteps; ++k) {
       const float dt = static_cast<float>(k) * kLeadStep;
-      glm::mat4 pm;
-      if (k == 0) {
-        pm = palette_matrix(pal, np, bc, f0, f1, blend, parts[p].bone);
-      } else {
-        const float fx = clip_time(ch.phase + ch.speed * (time + dt), clip_len, true) * bc.rate;
-        const int g0 = std::min(static_cast<int>(fx), bc.frame_count - 1);
-        const int g1 = std::min(g0 + 1, bc.frame_count - 1);
-        pm = palette_matrix(pal, np, bc, g0, g1, g1 > g0 ? fx - static_cast<float>(g0) : 0.0f, parts[p].bone);
-      }
+      const BakedFrames g = baked_frames(m, ch, time + dt);
+      const glm::mat4 pm = palette_matrix(pal, np, bc, g.f0, g.f1, g.blend, parts[p].bone);
       const glm::vec3 e = eye_char + eye_vel * dt;
       const glm::vec3 los = glm::normalize(glm::inverse(glm::mat3(pm)) * (glm::vec3(pm * glm::vec4(c, 1.0f)) - e));
       if (k == 0) los0 = los;

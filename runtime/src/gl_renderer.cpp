@@ -499,7 +499,6 @@ struct Renderer::Impl {
   GLuint prog_coverage = 0, coverage = 0;
   // Depth-corrected part cards (ImpostorConfig::parallax_cards, layered snapshots with one sample).
   bool parallax = false;
-  bool card_depth = false;  // depth-corrected cards write their surface depth (BB_CARD_DEPTH)
   bool depth_pass = false;  // ImpostorConfig::parallax_depth_pass
   bool fits_due = false;  // a snapshot of this frame wants its rectangle
   // DrawOptions::time_stages: timestamps at the start and after snapshots, coverage, geometry,
@@ -534,7 +533,7 @@ struct Renderer::Impl {
   struct BillboardProgram {
     GLuint prog = 0;
     GLint viewproj = -1, eye = -1, up = -1, edges = -1, samples = -1, sample_pos = -1, taps = -1, parallax = -1,
-          parallax_steps = -1;
+          parallax_steps = -1, depth_pass = -1;
   } bb, bb_samples;  // averaged taps; per-sample coverage
   int sample_count = 0;  // of the sample positions last given to the impostor shader
 
@@ -729,9 +728,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     glNamedBufferStorage(d.coverage, static_cast<GLsizeiptr>(whole.size() * sizeof(glm::vec4)), whole.data(), 0);
   }
   std::string bvs = kBillboardVs, bfs = kBillboardFs;
-  d.card_depth = d.parallax;
-  d.depth_pass = d.card_depth && config.parallax_depth_pass;
-  if (d.card_depth)
+  d.depth_pass = d.parallax && config.parallax_depth_pass;
+  if (d.parallax)  // depth-corrected cards write their surface depth
     for (std::string* src : {&bvs, &bfs}) src->insert(src->find('\n') + 1, "#define BB_CARD_DEPTH 1\n");
   auto pb = program(bvs, bfs, "impostor shader");
   if (!pb) return pb.error();
@@ -751,7 +749,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
            glGetUniformLocation(prog, "u_sample_pos"),
            glGetUniformLocation(prog, "u_taps"),
            glGetUniformLocation(prog, "u_parallax"),
-           glGetUniformLocation(prog, "u_parallax_steps")};
+           glGetUniformLocation(prog, "u_parallax_steps"),
+           glGetUniformLocation(prog, "u_depth_pass")};
     glProgramUniform1i(prog, bp->parallax, d.parallax ? 1 : 0);
     glProgramUniform1i(prog, bp->parallax_steps, std::clamp(config.parallax_steps, 0, 16));
   }
@@ -1057,11 +1056,11 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
       // Depth-corrected blended cards: first the opaque texels' surface depth, so overlapping
       // cards (at the joints) hide each other per pixel; then the colours, blended, where they
       // are not behind it.
-      glProgramUniform1i(bp.prog, glGetUniformLocation(bp.prog, "u_depth_pass"), 1);
+      glProgramUniform1i(bp.prog, bp.depth_pass, 1);
       glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
       glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(plan.billboards.size()));
       glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
-      glProgramUniform1i(bp.prog, glGetUniformLocation(bp.prog, "u_depth_pass"), 0);
+      glProgramUniform1i(bp.prog, bp.depth_pass, 0);
       glDepthFunc(GL_LEQUAL);
     }
     if (mode == 1 && plan.stats.part_cards > 0) glDepthMask(GL_FALSE);

@@ -10,6 +10,8 @@
 #include <set>
 #include <string>
 
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -41,7 +43,13 @@ const std::string& built_glb() {
     auto dir = std::filesystem::temp_directory_path() / "bb_build_test";
     std::filesystem::create_directories(dir);
     std::string p = (dir / "default.glb").string();
-    if (b) std::ofstream(p, std::ios::binary).write(reinterpret_cast<const char*>(b->glb.data()), b->glb.size());
+    // Every test of this file runs in its own process (CTest), several at once: each writes its
+    // own temporary file and renames it over the shared one, so none reads a file half-written.
+    if (b) {
+      const std::string tmp = p + ".tmp." + std::to_string(::getpid());
+      std::ofstream(tmp, std::ios::binary).write(reinterpret_cast<const char*>(b->glb.data()), b->glb.size());
+      std::filesystem::rename(tmp, p);
+    }
     return p;
   }();
   return path;
