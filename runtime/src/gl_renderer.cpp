@@ -285,19 +285,18 @@ void main() {
     // Depth-corrected card: find the window point w whose snapshot surface point lies on this
     // pixel's eye ray. From the plane point c: the surface's offset t at w, the ray's point at
     // that offset, seen from the snapshot's eye on the plane (iterative parallax mapping).
-    vec2 c = v_c, s = -v_snap.xy, w = c;
+    vec2 c = v_c, s = -v_snap.xy, w = c, x = c;
     float ez = -v_eye.z, dist = v_snap.z, t = 0.0;
     for (int k = 0; k < u_parallax_steps; ++k) {
       t = surface_offset(clamp(w, v_rect.xy, v_rect.zw), t);
-      vec2 x = c + (c - v_eye.xy) * (t / ez);
+      x = c + (c - v_eye.xy) * (t / ez);
       w = s + (x - s) * (dist / (dist + t));
     }
     if (any(lessThan(w, v_rect.xy)) || any(greaterThan(w, v_rect.zw))) discard;
     uv0 = mix(v_uvbox.xy, v_uvbox.zw, w * 0.5 + 0.5);
 #ifdef BB_CARD_DEPTH
     // The depth of the snapshot surface found on this pixel's ray, so overlapping cards (at the
-    // joints) hide each other where their surfaces do.
-    vec2 x = c + (c - v_eye.xy) * (t / ez);
+    // joints) hide each other where their surfaces do: the ray's point x at offset t.
     vec4 clip = u_viewproj * vec4(v_card_o + x.x * v_card_x + x.y * v_card_y + t * v_card_z, 1.0);
     gl_FragDepth = clamp(0.5 + 0.5 * clip.z / clip.w, 0.0, 1.0);
 #endif
