@@ -635,7 +635,6 @@ void Renderer::Impl::take_snapshot_passes(const FramePlan& plan) {
   snapshot_scratch.clear();
   scratch_lod.clear();
   scratch_part.clear();
-  fits_due = false;
   for (const Due& u : due) {
     snapshot_scratch.push_back(plan.snapshots[u.lod][u.index]);
     fits_due |= snapshot_scratch.back().part.z > 0.5f;
