@@ -1,6 +1,7 @@
 // bodybuilder demo [-o DIR]: the README's main job. Builds the built-in body's LOD set, runs
 // the human flow test bed in both modes and the paper's two sweeps plus a crowd-size series,
 // and writes the .glb, sample frames, charts and a short report into DIR (default out/demo).
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -33,6 +34,57 @@ std::string num(double v, int decimals = 2) {
   char b[64];
   std::snprintf(b, sizeof b, "%.*f", decimals, v);
   return b;
+}
+
+// The targets (the paper's results, to be beaten), checked against this demo's own runs:
+// one row per target with what was measured and whether it was met.
+ordered_json check_targets(const ordered_json& posture, const ordered_json& view, const ordered_json& parts,
+                           const ordered_json& parts_quality, const ordered_json& scaling) {
+  ordered_json rows = ordered_json::array();
+  auto row = [&](const std::string& target, const std::string& measured, bool met) {
+    rows.push_back({{"target", target}, {"measured", measured}, {"met", met}});
+  };
+  auto at = [](const ordered_json& sweep, double threshold) -> const ordered_json* {
+    for (const auto& r : sweep)
+      if (r["threshold"].get<double>() == threshold) return &r;
+    return nullptr;
+  };
+  // Worst case: threshold 0 refreshes every character every frame, in either sweep.
+  const ordered_json* p0 = at(posture["sweep"], 0.0);
+  const ordered_json* v0 = at(view["sweep"], 0.0);
+  if (p0 && v0) {
+    const double worst = std::max((*p0)["ratio"].get<double>(), (*v0)["ratio"].get<double>());
+    row("worst case (every character refreshed every frame): impostors at most 10 % slower than geometry",
+        "impostor/geometry " + num((*p0)["ratio"].get<double>(), 3) + " (posture 0), " +
+            num((*v0)["ratio"].get<double>(), 3) + " (view 0)",
+        worst <= 1.10);
+  }
+  for (auto [deg, want] : {std::pair{5.0, 2.0}, std::pair{8.0, 3.0}, std::pair{17.0, 5.0}})
+    if (const ordered_json* r = at(view["sweep"], deg))
+      row("view threshold " + num(deg, 0) + " degrees: at least " + num(want, 0) + "x faster than geometry",
+          num((*r)["speedup"].get<double>()) + "x (whole impostors)", (*r)["speedup"].get<double>() >= want);
+  // 28 dB at 8 degrees, at the 3x that 8 degrees asks for.
+  if (const ordered_json* r = at(view["sweep"], 8.0)) {
+    bool met = false;
+    std::string measured;
+    for (auto [name, run] : {std::pair{"whole", r}, std::pair{"part cards", &parts}, std::pair{"part cards, best quality", &parts_quality}}) {
+      const double db = (*run)["psnr_db"].get<double>(), x = (*run)["speedup"].get<double>();
+      met |= db >= 28.0 && x >= 3.0;
+      measured += std::string(measured.empty() ? "" : "; ") + name + " " + num(db, 1) + " dB at " + num(x) + "x";
+    }
+    row("view threshold 8 degrees: PSNR at least 28 dB against geometry (at the 3x of 8 degrees)", measured, met);
+  }
+  bool ran_10k = false;
+  for (const auto& r : scaling["scaling"])
+    if (r["humans"].get<int>() == 10000) {
+      ran_10k = true;
+      row("10,000 humans: impostors at least 10x faster than geometry", num(r["speedup"].get<double>()) + "x",
+          r["speedup"].get<double>() >= 10.0);
+    }
+  if (!ran_10k) rows.push_back({{"target", "10,000 humans: impostors at least 10x faster than geometry"},
+                                {"measured", "not run here (bodybuilder demo --full, or flow --scaling)"},
+                                {"met", nullptr}});
+  return rows;
 }
 
 // Pictures of the LOD set (paper figures 2 and 3): every level side by side (lods.png), and a
@@ -176,6 +228,7 @@ int run_demo(const std::string& dir, int frames, bool full) {
   all["part_cards"] = parts;
   all["part_cards_quality"] = parts_quality;
   all["refresh_budget"] = {{"none", budget_free}, {"capped", budget_capped}};
+  all["targets"] = check_targets(posture, view, parts, parts_quality, scaling);
   all["seconds"] = seconds;
   std::string json_path = (fs::path(dir) / "demo.json").string();
   if (auto st = write_atomic(json_path, all.dump(2) + "\n"); !st) {
@@ -210,6 +263,12 @@ int run_demo(const std::string& dir, int frames, bool full) {
   sweep_table(posture["sweep"], "posture threshold");
   md << "View threshold in degrees, posture test off (`sweep_view.png`, `sweep_view_quality.png`):\n\n";
   sweep_table(view["sweep"], "view threshold");
+  md << "## Against the paper's targets\n\nThe targets this project set itself (the paper's results, to be beaten), "
+        "checked against this demo's runs on this device:\n\n| target | measured | met |\n|---|---|---|\n";
+  for (const auto& t : all["targets"])
+    md << "| " << t["target"].get<std::string>() << " | " << t["measured"].get<std::string>() << " | "
+       << (t["met"].is_null() ? "-" : t["met"].get<bool>() ? "yes" : "**no**") << " |\n";
+  md << "\n";
   md << "## Part cards (`parts/`)\n\nThe paper's future work: one card per body part (" << parts["impostor_parts"].size()
      << " parts), each carried by its bone between snapshots, so limbs keep walking without a refresh. View "
         "threshold 8 degrees, posture test off:\n\n| impostors | speed-up | refresh fraction | PSNR (dB) | SSIM |\n"

@@ -1,4 +1,5 @@
 // `bodybuilder flow` and `bodybuilder demo` as a user runs them (headless EGL; llvmpipe here).
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <filesystem>
@@ -213,9 +214,35 @@ TEST(DemoCli, WritesTheLodSetFramesChartsAndReport) {
   EXPECT_LT(largest["refresh_fraction"].get<double>(), 0.5 * largest["unweighted"]["refresh_fraction"].get<double>());
   EXPECT_EQ(j["part_cards_quality"]["card_depth"], "pass");
   EXPECT_EQ(j["part_cards_quality"]["card_lead"], "on");
+  // The targets table agrees with the runs it summarises.
+  ASSERT_TRUE(j["targets"].is_array());
+  auto sweep_at = [&](const char* sweep, double t) {
+    for (const auto& r : j[sweep])
+      if (r["threshold"].get<double>() == t) return r;
+    ADD_FAILURE() << sweep << " has no threshold " << t;
+    return nlohmann::json{};
+  };
+  int checked = 0;
+  for (const auto& t : j["targets"]) {
+    const std::string what = t["target"].get<std::string>();
+    if (what.rfind("worst case", 0) == 0) {
+      const double worst = std::max(sweep_at("posture_sweep", 0)["ratio"].get<double>(),
+                                    sweep_at("view_sweep", 0)["ratio"].get<double>());
+      EXPECT_EQ(t["met"].get<bool>(), worst <= 1.10) << t.dump();
+      ++checked;
+    } else if (what.rfind("view threshold 8 degrees: at least 3x", 0) == 0) {
+      EXPECT_EQ(t["met"].get<bool>(), sweep_at("view_sweep", 8)["speedup"].get<double>() >= 3.0) << t.dump();
+      ++checked;
+    } else if (what.rfind("10,000 humans", 0) == 0) {
+      EXPECT_TRUE(t["met"].is_null()) << "the demo without --full runs no 10,000: " << t.dump();
+      ++checked;
+    }
+  }
+  EXPECT_EQ(checked, 3) << j["targets"].dump();
   std::ifstream md(d / "report.md");
   const std::string report((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
   EXPECT_NE(report.find("## Refresh budget"), std::string::npos);
+  EXPECT_NE(report.find("## Against the paper's targets"), std::string::npos);
   // How to check the numbers: the main run as a separate `flow` command on the demo's own file.
   EXPECT_NE(report.find("bodybuilder flow --model " + (d / "default.glb").string() + " --json -o out/check --frames 4`"),
             std::string::npos);
