@@ -66,6 +66,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   if (!s.snapshot_lod_from_screen) j["snapshot_lod"] = "window";
   if (!s.perspective_snapshots) j["snapshot_camera"] = "orthographic";
   j["snapshot_grid"] = s.aligned_snapshots ? "pixels" : "free";
+  j["snapshot_scale"] = s.exact_scale ? "exact" : "fill";
   j["snapshot_samples"] = s.snapshot_samples;
   j["quad_fit"] = s.fit_quads ? "coverage" : "boxes";
   if (s.hold_poses) j["hold_poses"] = true;
@@ -176,6 +177,11 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (a.snapshot_grid != "pixels" && a.snapshot_grid != "free")
     return fail("--snapshot-grid: expected pixels or free (got \"" + a.snapshot_grid + "\")");
   s.aligned_snapshots = a.snapshot_grid == "pixels";
+  if (a.snapshot_scale != "auto" && a.snapshot_scale != "fill" && a.snapshot_scale != "exact")
+    return fail("--snapshot-scale: expected auto, fill or exact (got \"" + a.snapshot_scale + "\")");
+  // auto: exact for whole impostors (faster at every threshold, the same PSNR from posture 0.1 and
+  // 1 degree up), fill for part cards (small cards lose 1.2 dB at 8 degrees without the margin).
+  s.exact_scale = a.snapshot_scale == "exact" || (a.snapshot_scale == "auto" && !a.impostor_parts);
   if (a.snapshot_samples != 1 && a.snapshot_samples != 4)
     return fail("--snapshot-samples: expected 1 or 4 (got " + std::to_string(a.snapshot_samples) + ")");
   s.snapshot_samples = a.snapshot_samples;
@@ -415,6 +421,9 @@ void add_flow_command(CLI::App& app, int* status) {
       ->capture_default_str();
   cmd->add_option("--snapshot-grid", a->snapshot_grid,
                   "Snapshot texels: pixels (on the screen's pixel grid, exact when taken) or free (section 4.2's camera)")
+      ->capture_default_str();
+  cmd->add_option("--snapshot-scale", a->snapshot_scale,
+                  "Snapshot size: fill (the character fills its power-of-two window: 1-2x the texels per pixel asked, section 4.3), exact (the texels per pixel asked, in part of the window: less to draw per refresh) or auto (exact for whole impostors, fill for part cards)")
       ->capture_default_str();
   cmd->add_option("--snapshot-samples", a->snapshot_samples,
                   "Samples per snapshot texel (4: multisampled like the scene, one tap per pixel; 1: four taps)")

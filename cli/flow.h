@@ -53,6 +53,7 @@ struct FlowSettings {
   bool parallax_depth_pass = false;         // ImpostorConfig::parallax_depth_pass
   bool lead_cards = true;                   // ImpostorConfig::lead_cards
   bool aligned_snapshots = false;           // ImpostorConfig::aligned_snapshots (texels on pixels)
+  bool exact_scale = false;                 // ImpostorConfig::texel_per_pixel (the asked texels per pixel, not the window's)
   int snapshot_samples = 1;                 // ImpostorConfig::snapshot_samples
   bool fit_quads = true;                    // ImpostorConfig::fit_quads_to_coverage
   bool time_stages = false;                 // GPU timestamps between the renderer's stages (gpu_ms_stages)
@@ -128,6 +129,7 @@ struct FlowArgs {
   std::string card_depth = "off";
   std::string card_lead = "on";
   std::string snapshot_grid = "free";
+  std::string snapshot_scale = "auto";
   int snapshot_samples = 1;
   std::string quad_fit = "coverage";
   bool gpu_stages = false;

@@ -86,6 +86,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   config.parallax_depth_pass = s.parallax_depth_pass;
   config.lead_cards = s.lead_cards;
   config.aligned_snapshots = s.aligned_snapshots;
+  config.texel_per_pixel = s.exact_scale;
   config.snapshot_samples = s.snapshot_samples;
   config.fit_quads_to_coverage = s.fit_quads;
   config.planner_threads = s.planner_threads;

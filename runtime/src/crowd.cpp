@@ -326,7 +326,8 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
                                                      config_.snapshot_distance > 0 ? config_.snapshot_distance * ch.scale : 0.0f,
                                                      config_.perspective_snapshots);
       if (config_.texel_per_pixel && sc.perspective)
-        sc.half_size = std::max(sc.half_size, static_cast<float>(config_.windows.size[wclass]) * sc.distance / (2.0f * ppm1));
+        sc.half_size = std::max(sc.half_size, static_cast<float>(config_.windows.size[wclass]) * sc.distance /
+                                                  (2.0f * ppm1 * std::max(config_.texels_per_pixel, 1e-3f)));
       // The view test's frame is section 4.2's (the line of sight to Ta) in either case.
       const glm::mat3 view = view_rotation(sc, ch.yaw);
 
@@ -761,7 +762,8 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
                                                 config_.snapshot_distance > 0 ? config_.snapshot_distance * sc : 0.0f,
                                                 config_.perspective_snapshots);
       if (config_.texel_per_pixel && cam.perspective)
-        cam.half_size = std::max(cam.half_size, static_cast<float>(win.size) * cam.distance / (2.0f * ppm1));
+        cam.half_size = std::max(cam.half_size, static_cast<float>(win.size) * cam.distance /
+                                                    (2.0f * ppm1 * std::max(config_.texels_per_pixel, 1e-3f)));
       // The snapshot's direction, and the line of sight to the part now, which the view test
       // also follows (the same without a lead).
       const glm::vec3 vo = cam.vo;

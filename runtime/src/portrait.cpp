@@ -32,6 +32,7 @@ Result<Image> render_portrait(const Model& model, const PortraitOptions& o) {
   int window = static_cast<int>(std::ceil(2.0f * half * cam.pixels_per_metre(depth) - 1e-3f));
   window = std::clamp(window + (window & 1), 8, 4096);
   cfg.texel_per_pixel = true;
+  cfg.texels_per_pixel = 1.0f;
   if (o.orthographic) {
     cfg.perspective_snapshots = false;
     window = std::clamp(static_cast<int>(std::ceil(2.0f * r * cam.pixels_per_metre(depth))), 8, 4096);

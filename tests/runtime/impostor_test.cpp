@@ -514,6 +514,38 @@ TEST(FramePlanner, SnapshotUsesTheGeometryLevelOfTheCharacter) {
   EXPECT_EQ(static_cast<int>(w.snapshots[0][0].window.w), window.atlas().page_class(0) >= 0 ? 0 : -1);
 }
 
+// ImpostorConfig::texel_per_pixel: the snapshot holds the texels per pixel asked for, in part of
+// its power-of-two window, instead of filling the window (1-2x as many per axis).
+TEST(FramePlanner, ExactScaleSnapshotsHoldTheTexelsPerPixelAsked) {
+  Model m = tiny_model();
+  Crowd crowd(m);
+  crowd.add(Character{});
+  SceneCamera cam;
+  cam.height = 1024;
+  cam.target = m.ta;
+  cam.eye = m.ta + glm::vec3(0, 0, 2 * m.radius * cam.pixels_per_metre(1.0f) / 100.0f);  // 100 px across
+  const float ppm1 = cam.pixels_per_metre(1.0f);
+  auto texels_per_pixel = [&](float asked, bool exact) {
+    ImpostorConfig cfg;
+    cfg.texels_per_pixel = asked;
+    cfg.texel_per_pixel = exact;
+    FramePlanner planner(m, cfg);
+    const FramePlan& p = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+    int size = 0;
+    for (int k = 0; k < cfg.windows.count; ++k)
+      if (p.stats.impostors_per_window[k] == 1) size = cfg.windows.size[k];
+    for (const auto& level : p.snapshots)
+      for (const SnapshotGpu& s : level) return static_cast<float>(size) * s.uo_dist.w / (2.0f * s.ho_half.w * ppm1);
+    ADD_FAILURE() << "no snapshot";
+    return 0.0f;
+  };
+  // 100 px: the 128 window at 1 texel per pixel, the 256 one at 2.
+  EXPECT_NEAR(texels_per_pixel(1.0f, false), 1.28f, 0.02f);
+  EXPECT_NEAR(texels_per_pixel(1.0f, true), 1.0f, 0.01f);
+  EXPECT_NEAR(texels_per_pixel(2.0f, false), 2.56f, 0.03f);
+  EXPECT_NEAR(texels_per_pixel(2.0f, true), 2.0f, 0.02f);
+}
+
 TEST(FramePlanner, AtlasFullFallsBackToGeometry) {
   Model m = tiny_model();
   Crowd crowd(m);
