@@ -181,7 +181,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     return fail("--snapshot-scale: expected auto, fill or exact (got \"" + a.snapshot_scale + "\")");
   // auto: exact for whole impostors (faster at every threshold, the same PSNR from posture 0.1 and
   // 1 degree up), fill for part cards (small cards lose 1.2 dB at 8 degrees without the margin).
-  s.exact_scale = a.snapshot_scale == "exact" || (a.snapshot_scale == "auto" && !a.impostor_parts);
+  s.exact_scale = s.perspective_snapshots && (a.snapshot_scale == "exact" || (a.snapshot_scale == "auto" && !a.impostor_parts));
   if (a.snapshot_samples != 1 && a.snapshot_samples != 4)
     return fail("--snapshot-samples: expected 1 or 4 (got " + std::to_string(a.snapshot_samples) + ")");
   s.snapshot_samples = a.snapshot_samples;
