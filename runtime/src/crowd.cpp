@@ -150,6 +150,12 @@ float window_texels_per_pixel(int window_size, float half_size, float depth, flo
   return static_cast<float>(window_size) * std::max(depth, 1e-3f) / (2.0f * half_size * ppm1);
 }
 
+// The inverse: the half size (metres) at which a `window_size`-texel window `depth` metres from the
+// eye holds `texels_per_pixel` texels per screen pixel (ImpostorConfig::texel_per_pixel).
+float half_size_at(int window_size, float texels_per_pixel, float depth, float ppm1) {
+  return static_cast<float>(window_size) * depth / (2.0f * ppm1 * std::max(texels_per_pixel, 1e-3f));
+}
+
 // How far past the posture threshold: the largest relative change of the four squared
 // distances over `threshold` (as posture_changed, whose test is this > 1).
 float posture_staleness(const std::array<float, 4>& stored, const std::array<float, 4>& now, float threshold) {
@@ -326,8 +332,7 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
                                                      config_.snapshot_distance > 0 ? config_.snapshot_distance * ch.scale : 0.0f,
                                                      config_.perspective_snapshots);
       if (config_.texel_per_pixel && sc.perspective)
-        sc.half_size = std::max(sc.half_size, static_cast<float>(config_.windows.size[wclass]) * sc.distance /
-                                                  (2.0f * ppm1 * std::max(config_.texels_per_pixel, 1e-3f)));
+        sc.half_size = std::max(sc.half_size, half_size_at(config_.windows.size[wclass], config_.texels_per_pixel, sc.distance, ppm1));
       // The view test's frame is section 4.2's (the line of sight to Ta) in either case.
       const glm::mat3 view = view_rotation(sc, ch.yaw);
 
@@ -762,8 +767,7 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
                                                 config_.snapshot_distance > 0 ? config_.snapshot_distance * sc : 0.0f,
                                                 config_.perspective_snapshots);
       if (config_.texel_per_pixel && cam.perspective)
-        cam.half_size = std::max(cam.half_size, static_cast<float>(win.size) * cam.distance /
-                                                    (2.0f * ppm1 * std::max(config_.texels_per_pixel, 1e-3f)));
+        cam.half_size = std::max(cam.half_size, half_size_at(win.size, config_.texels_per_pixel, cam.distance, ppm1));
       // The snapshot's direction, and the line of sight to the part now, which the view test
       // also follows (the same without a lead).
       const glm::vec3 vo = cam.vo;
