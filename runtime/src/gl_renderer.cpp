@@ -349,9 +349,12 @@ void main() {
 // Quads fitted to the coverage (ImpostorConfig::fit_quads_to_coverage): per new snapshot (one
 // work group), the smallest rectangle of its quad that holds every texel with coverage, widened by
 // part.w texels (how far the impostor shader's taps at a pixel beside it reach), in window units;
-// an empty snapshot gets an empty rectangle. The planner's quad bounds it.
+// an empty snapshot gets an empty rectangle. The planner's quad bounds it. 4x4 invocations, each
+// gathering 2x2 texels a step: on llvmpipe 0.43 ms a frame for the part cards' ~50 new snapshots
+// and 0.65 ms for 20 Fox windows, against 0.75 and 1.02 ms with 16x16 invocations fetching a texel
+// each (most of the part cards' windows are smaller than 16x16 groups of 2x2).
 const char* kCoverageCs = R"(#version 450 core
-layout(local_size_x = 16, local_size_y = 16) in;
+layout(local_size_x = 4, local_size_y = 4) in;
 layout(binding = 2) uniform sampler2DArray u_atlas;
 layout(std430, binding = 0) writeonly buffer Coverage { vec4 covered[]; };
 struct Snapshot { vec4 instance[2], ho_half, uo_dist, vo, ta, window, rect, offset, part, quad; };  // SnapshotGpu
@@ -373,14 +376,21 @@ void main() {
   ivec2 lo = ivec2(origin), hi = ivec2(origin + size) - 1;
   ivec2 t0 = clamp(ivec2(floor(origin + (s.quad.xy + 1.0) * 0.5 * size)), lo, hi);
   ivec2 t1 = clamp(ivec2(ceil(origin + (s.quad.zw + 1.0) * 0.5 * size)) - 1, lo, hi);
-  int layer = int(s.window.w);
+  float layer = s.window.w;
   ivec2 a = ivec2(1 << 30), b = ivec2(-(1 << 30));
-  for (int y = t0.y + int(gl_LocalInvocationID.y); y <= t1.y; y += 16)
-    for (int x = t0.x + int(gl_LocalInvocationID.x); x <= t1.x; x += 16)
-      if (texelFetch(u_atlas, ivec3(x, y, layer), 0).a > 0.0) {
-        a = min(a, ivec2(x, y));
-        b = max(b, ivec2(x, y));
+  // 2x2 texels per step: one gather of their alphas (x: (0,1), y: (1,1), z: (1,0), w: (0,0)),
+  // texels past t1 (the next window's) masked out. A quarter of the fetches of one per texel.
+  vec2 inv = 1.0 / vec2(textureSize(u_atlas, 0).xy);
+  for (int y = t0.y + 2 * int(gl_LocalInvocationID.y); y <= t1.y; y += 8)
+    for (int x = t0.x + 2 * int(gl_LocalInvocationID.x); x <= t1.x; x += 8) {
+      bvec4 c = greaterThan(textureGather(u_atlas, vec3(vec2(x + 1, y + 1) * inv, layer), 3), vec4(0.0));
+      bool in_x = x + 1 <= t1.x, in_y = y + 1 <= t1.y;
+      c = bvec4(c.x && in_y, c.y && in_x && in_y, c.z && in_x, c.w);
+      if (any(c)) {
+        a = min(a, ivec2(c.w || c.x ? x : x + 1, c.w || c.z ? y : y + 1));
+        b = max(b, ivec2(c.y || c.z ? x + 1 : x, c.x || c.y ? y + 1 : y));
       }
+    }
   if (a.x <= b.x) {
     atomicMin(lo_x, a.x);
     atomicMin(lo_y, a.y);

@@ -453,15 +453,30 @@ TEST(CrowdRender, QuadsFittedToTheCoverageHoldEveryCoveredTexel) {
       const glm::vec4 r = (*renderer)->coverage_rect(static_cast<int>(b.layer.y));
       EXPECT_LT(r.x, r.z);
       int covered = 0, outside = 0;
+      glm::ivec2 tlo(size), thi(-1);  // the covered texels' bounds
       for (int y = 0; y < size; ++y)
         for (int x = 0; x < size; ++x) {
           if (px[((static_cast<std::size_t>(y0 + y) * cfg.page_size) + x0 + x) * 4 + 3] == 0) continue;
           ++covered;
+          tlo = glm::min(tlo, glm::ivec2(x, y));
+          thi = glm::max(thi, glm::ivec2(x, y));
           const glm::vec2 lo = glm::vec2(x, y) / float(size) * 2.0f - 1.0f, hi = glm::vec2(x + 1, y + 1) / float(size) * 2.0f - 1.0f;
           outside += lo.x < r.x || lo.y < r.y || hi.x > r.z || hi.y > r.w;
         }
       EXPECT_GT(covered, 50);
       EXPECT_EQ(outside, 0);
+      // And no larger: the covered texels' bounds widened by the same margin (the taps' reach, a
+      // few texels) on every side.
+      const float to_texels = 0.5f * static_cast<float>(size);
+      const float margin[4] = {static_cast<float>(tlo.x) - (r.x + 1.0f) * to_texels,
+                               static_cast<float>(tlo.y) - (r.y + 1.0f) * to_texels,
+                               (r.z + 1.0f) * to_texels - static_cast<float>(thi.x + 1),
+                               (r.w + 1.0f) * to_texels - static_cast<float>(thi.y + 1)};
+      for (float mk : margin) {
+        EXPECT_NEAR(mk, margin[0], 1e-3f);
+        EXPECT_GE(mk, 0.0f);
+        EXPECT_LE(mk, 4.0f);
+      }
       const glm::vec4 q(glm::max(glm::vec2(r), glm::vec2(b.rect)), glm::min(glm::vec2(r.z, r.w), glm::vec2(b.rect.z, b.rect.w)));
       planned += (b.rect.z - b.rect.x) * (b.rect.w - b.rect.y);
       fitted += (q.z - q.x) * (q.w - q.y);
