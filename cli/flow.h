@@ -121,7 +121,7 @@ struct FlowArgs {
   float orbit = 0;
   int msaa = 4;
   float texels_per_pixel = 1.0f;  // see FlowSettings
-  std::string impostor_edges = "coverage", snapshot_lod = "screen", snapshot_camera = "perspective";
+  std::string impostor_edges = "auto", snapshot_lod = "screen", snapshot_camera = "perspective";
   bool hold_poses = false;
   bool impostor_parts = false;
   int refresh_budget = 0;
