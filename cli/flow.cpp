@@ -63,6 +63,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["psnr_min_db"] = r.psnr_min_db;
   j["ssim"] = r.ssim;
   j["impostor_edges"] = s.impostor_edges;
+  j["relight"] = s.relight ? "on" : "off";
   if (!s.snapshot_lod_from_screen) j["snapshot_lod"] = "window";
   if (!s.perspective_snapshots) j["snapshot_camera"] = "orthographic";
   j["snapshot_grid"] = s.aligned_snapshots ? "pixels" : "free";
@@ -174,6 +175,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     return fail("--card-depth: expected on, pass or off (got \"" + a.card_depth + "\")");
   s.parallax_cards = a.card_depth != "off";
   s.parallax_depth_pass = a.card_depth == "pass";
+  if (a.relight != "on" && a.relight != "off")
+    return fail("--relight: expected on or off (got \"" + a.relight + "\")");
+  s.relight = a.relight == "on";
   if (a.card_lead != "on" && a.card_lead != "off")
     return fail("--card-lead: expected on or off (got \"" + a.card_lead + "\")");
   s.lead_cards = a.card_lead == "on";
@@ -415,6 +419,9 @@ void add_flow_command(CLI::App& app, int* status) {
                 "One impostor card per body part, carried by its bone between snapshots (less pose and view lag)");
   cmd->add_option("--limb-cards", a->limb_cards,
                   "With --impostor-parts: limb cards turn about the limb's axis to face the eye, or stay fixed to the bone")
+      ->capture_default_str();
+  cmd->add_option("--relight", a->relight,
+                  "Snapshots store albedo and normals, lit as drawn: a part card turned by its bone is shaded as it now lies (on or off)")
       ->capture_default_str();
   cmd->add_option("--card-depth", a->card_depth,
                   "With --impostor-parts: depth-corrected cards (each pixel finds the snapshot texel on its own eye ray); pass: blended cards also get a depth pass (per-pixel order at the joints, slower)")

@@ -50,6 +50,7 @@ struct FlowSettings {
   int refresh_budget = 0;                   // CacheConfig::refresh_budget (0: no limit)
   bool turn_limb_cards = false;             // ImpostorConfig::turn_limb_cards
   bool parallax_cards = false;              // ImpostorConfig::parallax_cards (depth-corrected cards)
+  bool relight = false;                     // ImpostorConfig::relight (impostors lit as drawn)
   bool parallax_depth_pass = false;         // ImpostorConfig::parallax_depth_pass
   bool lead_cards = true;                   // ImpostorConfig::lead_cards
   bool aligned_snapshots = false;           // ImpostorConfig::aligned_snapshots (texels on pixels)
@@ -127,6 +128,7 @@ struct FlowArgs {
   int refresh_budget = 0;
   std::string limb_cards = "fixed";
   std::string card_depth = "off";
+  std::string relight = "off";
   std::string card_lead = "on";
   std::string snapshot_grid = "free";
   std::string snapshot_scale = "auto";

@@ -83,6 +83,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   config.cache.refresh_budget = s.refresh_budget;
   config.turn_limb_cards = s.turn_limb_cards;
   config.parallax_cards = s.parallax_cards;
+  config.relight = s.relight;
   config.parallax_depth_pass = s.parallax_depth_pass;
   config.lead_cards = s.lead_cards;
   config.aligned_snapshots = s.aligned_snapshots;

@@ -175,6 +175,15 @@ struct ImpostorConfig {
   // cards: 27.73 -> 28.10 dB (interior squared error 60 -> 48), but the second pass over every
   // card costs about a third of the impostor frame on llvmpipe (1.43x -> 1.05x geometry's speed).
   bool parallax_depth_pass = false;
+  // Relit snapshots: a snapshot stores the albedo and, in a second atlas of the same pages, the
+  // normal in the snapshot camera's frame; the impostor shader lights them with the normals turned
+  // into the quad's frame of the moment (a part card's axes as its bone carries them, a whole
+  // impostor's as it faces the eye). A part card turned by its bone since its snapshot is then
+  // shaded as it now lies under the light instead of as it lay (same diffuse model as the
+  // geometry), and impostors follow a light that moves (Renderer::set_light) without new snapshots.
+  // Doubles the atlas memory (RGBA8 normals). On a renderer with layered snapshots
+  // and one sample per texel only (else ignored).
+  bool relight = false;
   // Leading part cards: a card's snapshot is taken along the mean of its part's line of sight
   // (in the bone's frame) over the time the card will last, found by playing the clip on and
   // carrying the eye on at its velocity in the character's frame until the line of sight has

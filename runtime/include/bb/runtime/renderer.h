@@ -78,6 +78,10 @@ class Renderer {
   // GL state left changed: program 0, VAO 0, texture units 0-2, viewport, depth test on (LESS,
   // writes on), blending, alpha to coverage and face culling off.
   void draw(const FramePlan& plan, const DrawOptions& options = {});
+  // The directional light (world, towards the light; normalised here; default (0.4, 0.8, 0.6)).
+  // Geometry and new snapshots take it at once; impostors already in the atlas keep the light
+  // they were taken under unless the renderer relights them (ImpostorConfig::relight).
+  void set_light(glm::vec3 towards_light);
 
   // Copies page `page` of the atlas (RGBA8, premultiplied, rows bottom to top) for inspection.
   std::vector<std::uint8_t> read_atlas_page(int page) const;
