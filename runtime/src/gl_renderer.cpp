@@ -289,7 +289,6 @@ layout(location = 0) out vec4 o_color;
 layout(binding = 5) uniform sampler2DArray u_atlas_normal;
 uniform vec3 u_light;  // unit, world, towards the light
 flat in mat3 v_frame;
-vec4 tap_normal(vec2 uv) { return texture(u_atlas_normal, vec3(uv, v_uvl.z)); }
 // Premultiplied albedo c and normal code m (the same taps) -> premultiplied lit colour.
 vec4 lit(vec4 c, vec4 m) {
   if (c.a <= 0.0) return c;
