@@ -475,6 +475,12 @@ std::string layered(const std::string& src) {
   return v + "#extension GL_ARB_shader_viewport_layer_array : require\n#define BB_LAYERED 1\n" + src.substr(v.size());
 }
 
+// `src` with "#define name 1" after its #version line (a shader variant).
+std::string with_define(std::string src, const char* name) {
+  src.insert(src.find('\n') + 1, std::string("#define ") + name + " 1\n");
+  return src;
+}
+
 bool has_gl_extension(const char* name) {
   GLint n = 0;
   glGetIntegerv(GL_NUM_EXTENSIONS, &n);
@@ -603,6 +609,13 @@ struct Renderer::Impl {
           parallax_steps = -1, depth_pass = -1;
   } bb, bb_samples;  // averaged taps; per-sample coverage
   int sample_count = 0;  // of the sample positions last given to the impostor shader
+
+  // `light` into every program that shades (the impostor programs only when they relight: elsewhere
+  // the location is -1 and the call does nothing).
+  void upload_light() {
+    for (GLuint p : {prog_geometry, prog_snapshot, prog_billboard, prog_billboard_samples})
+      glProgramUniform3fv(p, glGetUniformLocation(p, "u_light"), 1, glm::value_ptr(light));
+  }
 
   void set_material(GLuint prog, const Material& m) {
     const ShadeLocations& l = prog == prog_geometry ? shade_geometry : shade_snapshot;
@@ -769,7 +782,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   std::string svs = d.layered ? layered(std::string(kCommon) + kSnapshotVs) : std::string(kCommon) + kSnapshotVs;
   std::string sfs = kShadeFs;
   if (d.relight)  // snapshots of albedo and normals
-    for (std::string* src : {&svs, &sfs}) src->insert(src->find('\n') + 1, "#define BB_NORMALS 1\n");
+    for (std::string* src : {&svs, &sfs}) *src = with_define(*src, "BB_NORMALS");
   auto ps = program(svs, sfs, "snapshot shader");
   if (!ps) return ps.error();
   d.prog_snapshot = *ps;
@@ -800,15 +813,13 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   std::string bvs = kBillboardVs, bfs = kBillboardFs;
   d.depth_pass = d.parallax && config.parallax_depth_pass;
   if (d.parallax)  // depth-corrected cards write their surface depth
-    for (std::string* src : {&bvs, &bfs}) src->insert(src->find('\n') + 1, "#define BB_CARD_DEPTH 1\n");
+    for (std::string* src : {&bvs, &bfs}) *src = with_define(*src, "BB_CARD_DEPTH");
   if (d.relight)  // impostors lit as drawn
-    for (std::string* src : {&bvs, &bfs}) src->insert(src->find('\n') + 1, "#define BB_RELIGHT 1\n");
+    for (std::string* src : {&bvs, &bfs}) *src = with_define(*src, "BB_RELIGHT");
   auto pb = program(bvs, bfs, "impostor shader");
   if (!pb) return pb.error();
   d.prog_billboard = *pb;
-  std::string per_sample = bfs;
-  per_sample.insert(per_sample.find('\n') + 1, "#define BB_PER_SAMPLE 1\n");
-  auto pbs = program(bvs, per_sample, "impostor shader (per sample)");
+  auto pbs = program(bvs, with_define(bfs, "BB_PER_SAMPLE"), "impostor shader (per sample)");
   if (!pbs) return pbs.error();
   d.prog_billboard_samples = *pbs;
   for (auto [prog, bp] : {std::pair{d.prog_billboard, &d.bb}, std::pair{d.prog_billboard_samples, &d.bb_samples}}) {
@@ -824,14 +835,12 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
            glGetUniformLocation(prog, "u_parallax_steps"),
            glGetUniformLocation(prog, "u_depth_pass")};
     glProgramUniform1i(prog, bp->parallax, d.parallax ? 1 : 0);
-    if (d.relight) glProgramUniform3fv(prog, glGetUniformLocation(prog, "u_light"), 1, glm::value_ptr(d.light));
     glProgramUniform1i(prog, bp->parallax_steps, std::clamp(config.parallax_steps, 0, 16));
   }
   const GLint psize = static_cast<GLint>(model.palette.size());
   glProgramUniform1i(d.prog_geometry, glGetUniformLocation(d.prog_geometry, "u_palette_size"), psize);
   glProgramUniform1i(d.prog_snapshot, glGetUniformLocation(d.prog_snapshot, "u_palette_size"), psize);
-  for (GLuint p : {d.prog_geometry, d.prog_snapshot})
-    glProgramUniform3fv(p, glGetUniformLocation(p, "u_light"), 1, glm::value_ptr(d.light));
+  d.upload_light();
   d.loc_geometry_viewproj = glGetUniformLocation(d.prog_geometry, "u_viewproj");
   d.shade_geometry = {glGetUniformLocation(d.prog_geometry, "u_color"), glGetUniformLocation(d.prog_geometry, "u_cutoff")};
   d.shade_snapshot = {glGetUniformLocation(d.prog_snapshot, "u_color"), glGetUniformLocation(d.prog_snapshot, "u_cutoff")};
@@ -934,32 +943,28 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     return Error{"", "atlas", "page size " + std::to_string(config.page_size) + " x " + std::to_string(config.max_pages) +
                                   " pages exceeds the GPU's limits (" + std::to_string(max_size) + ", " +
                                   std::to_string(max_layers) + " layers)"};
-  glCreateTextures(GL_TEXTURE_2D_ARRAY, 1, &d.atlas);
-  glTextureStorage3D(d.atlas, 1, GL_RGBA8, config.page_size, config.page_size, config.max_pages);
-  glTextureParameteri(d.atlas, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-  glTextureParameteri(d.atlas, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-  glTextureParameteri(d.atlas, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-  glTextureParameteri(d.atlas, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  // One layer per page, clamped at the edges.
+  auto page_array = [&](GLenum format, GLint filter) {
+    GLuint t = 0;
+    glCreateTextures(GL_TEXTURE_2D_ARRAY, 1, &t);
+    glTextureStorage3D(t, 1, format, config.page_size, config.page_size, config.max_pages);
+    glTextureParameteri(t, GL_TEXTURE_MIN_FILTER, filter);
+    glTextureParameteri(t, GL_TEXTURE_MAG_FILTER, filter);
+    glTextureParameteri(t, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    glTextureParameteri(t, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    return t;
+  };
+  d.atlas = page_array(GL_RGBA8, GL_LINEAR);
   glCreateFramebuffers(1, &d.atlas_fbo);
   if (d.layered) {
-    glCreateTextures(GL_TEXTURE_2D_ARRAY, 1, &d.atlas_depth);
-    glTextureStorage3D(d.atlas_depth, 1, GL_DEPTH_COMPONENT24, config.page_size, config.page_size, config.max_pages);
     // Read back by depth-corrected part cards (texel gathers, no comparison).
-    glTextureParameteri(d.atlas_depth, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    glTextureParameteri(d.atlas_depth, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    glTextureParameteri(d.atlas_depth, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-    glTextureParameteri(d.atlas_depth, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    d.atlas_depth = page_array(GL_DEPTH_COMPONENT24, GL_NEAREST);
     glNamedFramebufferTexture(d.atlas_fbo, GL_COLOR_ATTACHMENT0, d.atlas, 0);
     glNamedFramebufferTexture(d.atlas_fbo, GL_DEPTH_ATTACHMENT, d.atlas_depth, 0);
     if (d.relight) {
       // Normals at 8 bits a component: the same PSNR as 10 (RGB10_A2) on the flow test bed, and
       // 20 % less time for the relit cards on llvmpipe.
-      glCreateTextures(GL_TEXTURE_2D_ARRAY, 1, &d.atlas_normal);
-      glTextureStorage3D(d.atlas_normal, 1, GL_RGBA8, config.page_size, config.page_size, config.max_pages);
-      glTextureParameteri(d.atlas_normal, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-      glTextureParameteri(d.atlas_normal, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-      glTextureParameteri(d.atlas_normal, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-      glTextureParameteri(d.atlas_normal, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+      d.atlas_normal = page_array(GL_RGBA8, GL_LINEAR);
       glNamedFramebufferTexture(d.atlas_fbo, GL_COLOR_ATTACHMENT1, d.atlas_normal, 0);
       const GLenum bufs[2] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1};
       glNamedFramebufferDrawBuffers(d.atlas_fbo, 2, bufs);
@@ -1037,11 +1042,7 @@ void Renderer::set_light(glm::vec3 towards_light) {
   const float len = glm::length(towards_light);
   if (!(len > 0.0f) || !std::isfinite(len)) return;  // no direction: keep the light
   d.light = towards_light / len;
-  for (GLuint p : {d.prog_geometry, d.prog_snapshot})
-    glProgramUniform3fv(p, glGetUniformLocation(p, "u_light"), 1, glm::value_ptr(d.light));
-  if (d.relight)
-    for (GLuint p : {d.prog_billboard, d.prog_billboard_samples})
-      glProgramUniform3fv(p, glGetUniformLocation(p, "u_light"), 1, glm::value_ptr(d.light));
+  d.upload_light();
 }
 
 void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
