@@ -335,8 +335,9 @@ void main() {
   vec2 dx = dFdx(v_uvl.xy), dy = dFdy(v_uvl.xy);
   vec2 uv0 = v_uvl.xy;
 #ifdef BB_CARD_DEPTH
+  // Only in the depth-corrected cards' program: a branch that no pixel takes still cost llvmpipe
+  // 30 % of the impostor pass (Fox, 20 whole impostors, no refreshes: 3.9 -> 2.6 ms without it).
   gl_FragDepth = gl_FragCoord.z;
-#endif
   if (v_snap.z > 0.0) {
     // Depth-corrected card: find the window point w whose snapshot surface point lies on this
     // pixel's eye ray. From the plane point c: the surface's offset t at w, the ray's point at
@@ -350,13 +351,12 @@ void main() {
     }
     if (any(lessThan(w, v_rect.xy)) || any(greaterThan(w, v_rect.zw))) discard;
     uv0 = mix(v_uvbox.xy, v_uvbox.zw, w * 0.5 + 0.5);
-#ifdef BB_CARD_DEPTH
     // The depth of the snapshot surface found on this pixel's ray, so overlapping cards (at the
     // joints) hide each other where their surfaces do: the ray's point x at offset t.
     vec4 clip = u_viewproj * vec4(v_card_o + x.x * v_card_x + x.y * v_card_y + t * v_card_z, 1.0);
     gl_FragDepth = clamp(0.5 + 0.5 * clip.z / clip.w, 0.0, 1.0);
-#endif
   }
+#endif
 #ifdef BB_PER_SAMPLE
   {
     int mask = 0;
