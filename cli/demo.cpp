@@ -78,8 +78,10 @@ ordered_json check_targets(const ordered_json& posture, const ordered_json& view
   for (const auto& r : scaling["scaling"])
     if (r["humans"].get<int>() == 10000) {
       ran_10k = true;
-      row("10,000 humans: impostors at least 10x faster than geometry", num(r["speedup"].get<double>()) + "x",
-          r["speedup"].get<double>() >= 10.0);
+      std::string measured = num(r["speedup"].get<double>()) + "x";
+      if (r.contains("unweighted"))
+        measured += " (" + num(1.0 / r["unweighted"]["ratio"].get<double>()) + "x without the screen weighting)";
+      row("10,000 humans: impostors at least 10x faster than geometry", measured, r["speedup"].get<double>() >= 10.0);
     }
   if (!ran_10k) rows.push_back({{"target", "10,000 humans: impostors at least 10x faster than geometry"},
                                 {"measured", "not run here (bodybuilder demo --full, or flow --scaling)"},
@@ -209,7 +211,9 @@ int run_demo(const std::string& dir, int frames, bool full) {
   sc.frames = 2;
   sc.scaling = true;
   sc.scaling_frames = 3;
-  sc.scaling_list = full ? "20,100,500,1000,2000,5000,10000" : "20,100,500,1000";
+  // 10,000 humans (the target) take ~20 s here (3 frames of 1.3 s geometry, with and
+  // without the screen weighting); --full adds 2,000 and 5,000.
+  sc.scaling_list = full ? "20,100,500,1000,2000,5000,10000" : "20,100,500,1000,10000";
   std::printf("flow: crowd sizes %s ...\n", sc.scaling_list.c_str());
   if (int st = run_flow_command(sc, &scaling); st) return st;
   // 4. Pictures of the LOD set (after the timed runs, so that those run in the same state as a
@@ -368,7 +372,7 @@ void add_demo_command(CLI::App& app, int* status) {
   cmd->add_option("-o,--output", *dir, "Output folder")->capture_default_str();
   cmd->add_option("--frames", *frames, "Measured frames of the main run (sweeps use half)")->capture_default_str()
       ->check(CLI::Range(4, 100000));
-  cmd->add_flag("--full", *full, "Crowd sizes up to 10,000 humans (slow without a GPU)");
+  cmd->add_flag("--full", *full, "Also the crowd sizes 2,000 and 5,000 (the demo runs 20 to 1,000 and 10,000)");
   cmd->callback([=] { *status = run_demo(*dir, *frames, *full); });
 }
 
