@@ -182,16 +182,16 @@ layout(location = 6) in vec4 i_snap;  // depth-corrected part cards (z > 0): sna
 uniform mat4 u_viewproj;
 uniform vec3 u_eye;
 uniform vec3 u_up;
-uniform int u_parallax;  // 1: depth-corrected part cards where i_snap.z > 0
 // Quads fitted to the coverage (i_layer.z = 1): the rectangle kCoverageCs found in the window.
 layout(std430, binding = 0) readonly buffer Coverage { vec4 covered[]; };
 out vec3 v_uvl;
+#ifdef BB_CARD_DEPTH
+// Depth-corrected part cards (the program with BB_CARD_DEPTH, where i_snap.z > 0).
 out vec2 v_c;          // point of the card plane, window units
 flat out vec3 v_eye;   // the eye in the card's frame (window units; z along the snapshot's Vo)
 flat out vec4 v_snap;  // i_snap when corrected, else 0
 flat out vec4 v_rect;  // the part of the window with snapshot texels
 flat out vec4 v_uvbox;
-#ifdef BB_CARD_DEPTH
 flat out vec3 v_card_o, v_card_x, v_card_y, v_card_z;  // the card's frame (world; axes x half size)
 #endif
 #ifdef BB_RELIGHT
@@ -204,11 +204,12 @@ void main() {
     r = vec4(max(r.xy, f.xy), min(r.zw, f.zw));
     if (any(greaterThanEqual(r.xy, r.zw))) r = vec4(0.0);  // nothing covered: no area
   }
+#ifdef BB_CARD_DEPTH
   v_rect = r;
   v_uvbox = i_uv;
   v_snap = vec4(0.0);
   v_eye = vec3(0.0);
-  if (u_parallax == 1 && i_axis_x.w > 0.5 && i_snap.z > 0.0 && r.x < r.z) {
+  if (i_axis_x.w > 0.5 && i_snap.z > 0.0 && r.x < r.z) {
     // The card's frame: Ho, Uo, Vo = Uo x Ho, lengths in half sizes.
     float hl = length(i_axis_x.xyz);
     vec3 ho = i_axis_x.xyz / hl, uo = normalize(i_axis_y.xyz), vo = normalize(cross(uo, ho));
@@ -222,16 +223,17 @@ void main() {
       // and +0.03 dB without it; the fitted quad's margin holds the shift).
       v_snap = i_snap;
       v_eye = e;
-#ifdef BB_CARD_DEPTH
       v_card_o = i_ta_half.xyz;
       v_card_x = ho * hl;
       v_card_y = uo * hl;
       v_card_z = vo * hl;
-#endif
     }
   }
+#endif
   vec2 c = mix(r.xy, r.zw, vec2(gl_VertexID & 1, gl_VertexID >> 1));
+#ifdef BB_CARD_DEPTH
   v_c = c;
+#endif
   vec3 ta = i_ta_half.xyz;
   vec3 p;
   if (i_axis_x.w > 0.5) {
@@ -268,15 +270,15 @@ uniform int u_edges;  // 0: alpha test, 1: premultiplied blending, 2: alpha to c
 uniform int u_taps;   // 4: the pixel's coverage from four taps; 1: one tap (the texels hold it)
 uniform int u_samples;
 uniform vec2 u_sample_pos[16];  // offsets from the pixel centre, pixels
+in vec3 v_uvl;
+#ifdef BB_CARD_DEPTH
 layout(binding = 4) uniform sampler2DArray u_depth;  // the snapshots' depth (parallax cards)
 uniform int u_parallax_steps;
-in vec3 v_uvl;
 in vec2 v_c;
 flat in vec3 v_eye;
 flat in vec4 v_snap;
 flat in vec4 v_rect;
 flat in vec4 v_uvbox;
-#ifdef BB_CARD_DEPTH
 flat in vec3 v_card_o, v_card_x, v_card_y, v_card_z;
 uniform mat4 u_viewproj;
 uniform int u_depth_pass;  // 1: blended cards' depth pass (opaque texels, no colour)
@@ -304,6 +306,7 @@ vec4 tap(vec2 uv) {
 #else
 vec4 tap(vec2 uv) { return texture(u_atlas, vec3(uv, v_uvl.z)); }
 #endif
+#ifdef BB_CARD_DEPTH
 // Snapshot depth (window depth of kSnapshotVs's perspective) -> offset from the card plane along
 // Vo, in half sizes.
 vec4 plane_offset(vec4 d) {
@@ -331,6 +334,7 @@ float surface_offset(vec2 w, float fallback) {
   }
   return acc.y > 0.0 ? acc.x / acc.y : fallback;
 }
+#endif
 void main() {
   vec2 dx = dFdx(v_uvl.xy), dy = dFdy(v_uvl.xy);
   vec2 uv0 = v_uvl.xy;
@@ -605,8 +609,8 @@ struct Renderer::Impl {
   } shade_geometry, shade_snapshot;
   struct BillboardProgram {
     GLuint prog = 0;
-    GLint viewproj = -1, eye = -1, up = -1, edges = -1, samples = -1, sample_pos = -1, taps = -1, parallax = -1,
-          parallax_steps = -1, depth_pass = -1;
+    GLint viewproj = -1, eye = -1, up = -1, edges = -1, samples = -1, sample_pos = -1, taps = -1, parallax_steps = -1,
+          depth_pass = -1;
   } bb, bb_samples;  // averaged taps; per-sample coverage
   int sample_count = 0;  // of the sample positions last given to the impostor shader
 
@@ -831,10 +835,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
            glGetUniformLocation(prog, "u_samples"),
            glGetUniformLocation(prog, "u_sample_pos"),
            glGetUniformLocation(prog, "u_taps"),
-           glGetUniformLocation(prog, "u_parallax"),
            glGetUniformLocation(prog, "u_parallax_steps"),
            glGetUniformLocation(prog, "u_depth_pass")};
-    glProgramUniform1i(prog, bp->parallax, d.parallax ? 1 : 0);
     glProgramUniform1i(prog, bp->parallax_steps, std::clamp(config.parallax_steps, 0, 16));
   }
   const GLint psize = static_cast<GLint>(model.palette.size());
