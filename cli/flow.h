@@ -36,13 +36,13 @@ struct FlowSettings {
   int quality_every = 4;         // compare images every k-th measured frame
   int msaa = 4;                  // samples per pixel of the scene window (both paths)
   // Impostor windows chosen for this many texels per pixel, and how impostor edges meet the
-  // scene. The test bed's defaults are the fastest setting that keeps edges antialiased: on
-  // llvmpipe (20 humans) 1 texel + alpha to coverage gives 26.6 dB at threshold 0 and 4.3x /
-  // 4.8x / 6.2x at 5 / 8 / 17 degrees; the runtime's own defaults (2 texels, sorted blending)
-  // give 30.5 dB but only 3.4x / 4.1x / 4.5x.
+  // scene. The test bed's defaults are the fastest setting that keeps edges antialiased: 1 texel
+  // per pixel and sorted blending, which the runtime rasterizes single-sampled (on llvmpipe, 20
+  // humans: 27.0 dB at threshold 0, 8.6x at 8 degrees; alpha to coverage 24.7 dB, 8.0x). The
+  // runtime's own default of 2 texels per pixel gives ~30 dB fresh but draws 4x the texels.
   float texels_per_pixel = 1.0f;
   // Switches that isolate what limits image quality:
-  std::string impostor_edges = "coverage";  // blend (sorted), samples, coverage (alpha to coverage), test
+  std::string impostor_edges = "blend";     // blend (sorted), samples, coverage (alpha to coverage), test
   bool snapshot_lod_from_screen = true;     // false: the LOD that matches the window (section 4.3)
   bool perspective_snapshots = true;        // false: the paper's orthographic snapshot camera
   bool hold_poses = false;                  // every human keeps one pose (no pose lag)
