@@ -28,7 +28,11 @@ namespace bb::runtime {
 enum class ImpostorEdges {
   // Four taps at the standard 4x sample positions average the pixel's footprint (alpha = its
   // coverage); premultiplied blending, the quads sorted back to front by the renderer. Soft
-  // edges in any framebuffer; two impostors that cross each other blend in one order only.
+  // edges in any framebuffer; two impostors that cross each other blend in one order only. In a
+  // multisampled framebuffer the quads are rasterized single-sampled (GL_MULTISAMPLE off for the
+  // pass, then restored): the taps already give the edge, so per-sample coverage only costs
+  // (flow test bed, 4x MSAA, llvmpipe: the same frames, part cards 10-20 % faster, whole
+  // impostors 3-6 %, and then faster than kAlphaToCoverage with +2.4 dB when every one is fresh).
   kBlend,
   // Multisampled framebuffer: each sample of the pixel looks the window up at its own position
   // and is covered when that point is at least half covered, so the edges are antialiased the way
@@ -76,7 +80,7 @@ class Renderer {
   // (0, 0, width, height). Does not clear it. Snapshots first (they change the atlas), then
   // geometry, then impostors. `plan` must come from a FramePlanner of the same model and config.
   // GL state left changed: program 0, VAO 0, texture units 0-2, viewport, depth test on (LESS,
-  // writes on), blending, alpha to coverage and face culling off.
+  // writes on), blending, alpha to coverage and face culling off (multisampling as found).
   void draw(const FramePlan& plan, const DrawOptions& options = {});
   // The directional light (world, towards the light; normalised here; default (0.4, 0.8, 0.6)).
   // Geometry and new snapshots take it at once; impostors already in the atlas keep the light
