@@ -159,7 +159,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (a.snapshot_camera != "perspective" && a.snapshot_camera != "orthographic")
     return fail("--snapshot-camera: expected perspective or orthographic (got \"" + a.snapshot_camera + "\")");
   // auto: blending, which the runtime rasterizes single-sampled. On llvmpipe (flow test bed, 30
-  // frames) against alpha to coverage: whole impostors 7-10 % faster at 8 and 17 degrees, +0.1 dB,
+  // frames) against alpha to coverage: whole impostors 3-10 % faster at 8 and 17 degrees, +0.1 dB,
   // every impostor refreshed +2.4 dB (the Fox +2.2 dB); part cards +1.5 dB at 8 degrees.
   s.impostor_edges = a.impostor_edges != "auto" ? a.impostor_edges : "blend";
   s.snapshot_lod_from_screen = a.snapshot_lod == "screen";
