@@ -31,6 +31,10 @@ TEST(FlowCli, BothPathsOnAModelThatIsNotOurs) {
   if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
   fs::path d = fs::temp_directory_path() / "bb_flow_cli_test";
   fs::remove_all(d);
+  // A sample frame left by an earlier, longer run goes; other files stay.
+  fs::create_directories(d);
+  for (const char* f : {"frame_90_impostors_vs_geometry.png", "frame_notes_impostors_vs_geometry.png"})
+    std::ofstream(d / f) << "stale";
   Out o = run("flow --model " + model + " --frames 8 --size 480x384 --json -o " + d.string());
   if (o.text.find("EGL") != std::string::npos && o.status != 0) GTEST_SKIP() << "no headless OpenGL: " << o.text;
   ASSERT_EQ(o.status, 0) << o.text;
@@ -46,6 +50,8 @@ TEST(FlowCli, BothPathsOnAModelThatIsNotOurs) {
   EXPECT_GT(j["ssim"].get<double>(), 0.3);
   EXPECT_TRUE(fs::exists(d / "flow.json"));
   EXPECT_TRUE(fs::exists(d / "frame_0_impostors_vs_geometry.png"));
+  EXPECT_FALSE(fs::exists(d / "frame_90_impostors_vs_geometry.png"));
+  EXPECT_TRUE(fs::exists(d / "frame_notes_impostors_vs_geometry.png"));
 }
 
 TEST(FlowCli, WorstCaseRefreshesEveryImpostorEveryFrame) {
