@@ -168,6 +168,7 @@ int run_demo(const std::string& dir, int frames, bool full) {
   if (int st = run_flow_command(a, &main_run); st) return st;
   FlowArgs s = a;
   s.frames = std::max(10, frames / 2);
+  s.main_files = false;  // the main run's frames and flow.json stay
   s.sweep = "posture";
   std::printf("flow: posture-threshold sweep ...\n");
   if (int st = run_flow_command(s, &posture); st) return st;
@@ -208,6 +209,7 @@ int run_demo(const std::string& dir, int frames, bool full) {
   bf.refresh_budget = kDemoRefreshBudget;
   if (int st = run_flow_command(bf, &budget_capped); st) return st;
   FlowArgs sc = a;
+  sc.main_files = false;
   sc.frames = 2;
   sc.scaling = true;
   sc.scaling_frames = 3;

@@ -209,7 +209,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   s.orbit_deg_per_s = a.orbit;
   s.msaa = a.msaa;
   s.texels_per_pixel = a.texels_per_pixel;
-  s.keep_frames = {0, s.frames / 2};
+  if (a.main_files) s.keep_frames = {0, s.frames / 2};
 
   auto ctx = runtime::HeadlessContext::create();
   if (!ctx) return fail(ctx.error().message());
@@ -235,7 +235,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   // Sample frames of an earlier run into the same folder (another --frames keeps other frames)
   // would sit beside this run's and be taken for them: they go first.
   std::error_code ec;
-  for (fs::directory_iterator it(a.out, ec), end; !ec && it != end; it.increment(ec)) {
+  for (fs::directory_iterator it(a.out, ec), end; a.main_files && !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
     const std::string head = "frame_", tail = "_impostors_vs_geometry.png";
     if (name.size() <= head.size() + tail.size() || name.rfind(head, 0) != 0 ||
@@ -379,8 +379,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     for (auto ext : {".csv", ".json", ".png"}) written.push_back(base + ext);
   }
   report["files"] = written;
-  std::string json_path = (fs::path(a.out) / "flow.json").string();
-  if (auto st = write_text(json_path, report.dump(2) + "\n"); !st) return fail(st.error().message());
+  const std::string json_path = (fs::path(a.out) / "flow.json").string();
+  if (a.main_files)
+    if (auto st = write_text(json_path, report.dump(2) + "\n"); !st) return fail(st.error().message());
   if (out_report) *out_report = report;
   if (a.json) {
     std::cout << report.dump() << "\n";
@@ -393,7 +394,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     if (s.geometry && s.impostor)
       std::printf("  ratio      %8.3f  (speed-up %.2fx), PSNR %.1f dB, SSIM %.3f\n", result->ratio,
                   result->ratio > 0 ? 1 / result->ratio : 0, result->psnr_db, result->ssim);
-    std::printf("  wrote %s\n", json_path.c_str());
+    if (a.main_files) std::printf("  wrote %s\n", json_path.c_str());
     for (const auto& p : written) std::printf("  wrote %s\n", p.c_str());
   }
   return 0;

@@ -138,6 +138,9 @@ struct FlowArgs {
   bool gpu_stages = false;
   int planner_threads = 0;
   bool quiet = false;  // no summary on stdout (the demo prints its own)
+  // false: no sample frames and no flow.json, only the sweep's or crowd sizes' files (the demo's
+  // later runs, which share the main run's folder).
+  bool main_files = true;
   std::string scaling_list = "20,100,500,1000,2000,5000,10000";
   int scaling_frames = 10;
 };

@@ -212,6 +212,16 @@ TEST(DemoCli, WritesTheLodSetFramesChartsAndReport) {
   for (const char* f : {"default.glb", "default_body.png", "report.md", "demo.json", "sweep_posture.png",
                         "sweep_view.png", "scaling.png", "frame_0_impostors_vs_geometry.png"})
     EXPECT_TRUE(fs::exists(d / f)) << f;
+  // The folder's flow.json and sample frames are the main run's (4 frames: 0 and 2), not those of
+  // the sweeps (10 frames) or crowd sizes (2 frames) run after it into the same folder.
+  std::ifstream flow_in(d / "flow.json");
+  auto flow = nlohmann::json::parse(flow_in);
+  EXPECT_EQ(flow["frames"], 4);
+  EXPECT_FALSE(flow.contains("sweep"));
+  EXPECT_FALSE(flow.contains("scaling"));
+  EXPECT_TRUE(fs::exists(d / "frame_2_impostors_vs_geometry.png"));
+  EXPECT_FALSE(fs::exists(d / "frame_1_impostors_vs_geometry.png"));
+  EXPECT_FALSE(fs::exists(d / "frame_5_impostors_vs_geometry.png"));
   std::ifstream in(d / "demo.json");
   auto j = nlohmann::json::parse(in);
   EXPECT_GT(j["main"]["geometry_ms"].get<double>(), 0);
