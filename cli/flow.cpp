@@ -234,16 +234,18 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   std::vector<std::string> written;
   // Sample frames of an earlier run into the same folder (another --frames keeps other frames)
   // would sit beside this run's and be taken for them: they go first.
-  std::error_code ec;
-  for (fs::directory_iterator it(a.out, ec), end; a.main_files && !ec && it != end; it.increment(ec)) {
-    const std::string name = it->path().filename().string();
+  if (a.main_files) {
     const std::string head = "frame_", tail = "_impostors_vs_geometry.png";
-    if (name.size() <= head.size() + tail.size() || name.rfind(head, 0) != 0 ||
-        name.compare(name.size() - tail.size(), tail.size(), tail) != 0)
-      continue;
-    const std::string number = name.substr(head.size(), name.size() - head.size() - tail.size());
-    if (std::all_of(number.begin(), number.end(), [](unsigned char c) { return std::isdigit(c) != 0; }))
-      fs::remove(it->path(), ec);
+    std::error_code ec;
+    for (fs::directory_iterator it(a.out, ec), end; !ec && it != end; it.increment(ec)) {
+      const std::string name = it->path().filename().string();
+      if (name.size() <= head.size() + tail.size() || name.rfind(head, 0) != 0 ||
+          name.compare(name.size() - tail.size(), tail.size(), tail) != 0)
+        continue;
+      const std::string number = name.substr(head.size(), name.size() - head.size() - tail.size());
+      if (std::all_of(number.begin(), number.end(), [](unsigned char c) { return std::isdigit(c) != 0; }))
+        fs::remove(it->path(), ec);
+    }
   }
   for (const auto& im : result->images) {
     if (im.geometry.empty() && im.impostor.empty()) continue;

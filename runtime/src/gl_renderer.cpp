@@ -1148,11 +1148,11 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
     // taps already give the edge its coverage, so the samples add only cost. Flow test bed, 4x
     // MSAA, llvmpipe: the same frames as per-sample rasterization, part cards 10-20 % faster,
     // whole impostors 3-6 % (and then faster than alpha to coverage).
-    const bool multisample = glIsEnabled(GL_MULTISAMPLE) == GL_TRUE;
+    const bool single_sampled = mode == 1 && glIsEnabled(GL_MULTISAMPLE) == GL_TRUE;
+    if (single_sampled) glDisable(GL_MULTISAMPLE);
     if (mode == 1) {
       glEnable(GL_BLEND);
       glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
-      if (multisample) glDisable(GL_MULTISAMPLE);
     }
     glBindVertexArray(d.vao_billboard);
     // Blended part cards are sorted back to front by their centres like whole impostors and write
@@ -1176,7 +1176,7 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
     glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(plan.billboards.size()));
     glDepthFunc(GL_LESS);
     glDepthMask(GL_TRUE);
-    if (multisample) glEnable(GL_MULTISAMPLE);
+    if (single_sampled) glEnable(GL_MULTISAMPLE);
     glDisable(GL_BLEND);
     glDisable(GL_SAMPLE_ALPHA_TO_COVERAGE);
     glDisable(GL_SAMPLE_ALPHA_TO_ONE);
