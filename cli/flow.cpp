@@ -36,6 +36,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["frames"] = r.frames;
   j["size"] = std::to_string(r.width) + "x" + std::to_string(r.height);
   j["msaa"] = s.msaa;
+  j["impostor_target_samples"] = r.impostor_target_samples;
   j["texels_per_pixel"] = s.texels_per_pixel;
   auto r3 = [](float v) { return std::round(static_cast<double>(v) * 1000.0) / 1000.0; };
   j["posture"] = s.posture_test ? ordered_json(r3(s.posture_threshold)) : ordered_json("off");
@@ -208,6 +209,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   s.screen_weighting_px = screen_weighting ? px : 0.0f;
   s.orbit_deg_per_s = a.orbit;
   s.msaa = a.msaa;
+  if (a.impostor_target != "auto" && a.impostor_target != "scene")
+    return fail("--impostor-target: expected auto or scene (got \"" + a.impostor_target + "\")");
+  s.impostor_target_samples = a.impostor_target == "scene" ? a.msaa : 0;
   s.texels_per_pixel = a.texels_per_pixel;
   if (a.main_files) s.keep_frames = {0, s.frames / 2};
 
@@ -419,8 +423,11 @@ void add_flow_command(CLI::App& app, int* status) {
                   "Weight both thresholds by PX / height on screen for humans shorter than PX pixels, or off")
       ->capture_default_str();
   cmd->add_option("--orbit", a->orbit, "Camera orbit speed, degrees per second")->capture_default_str();
-  cmd->add_option("--msaa", a->msaa, "Samples per pixel of the scene window, both paths (1: none)")
+  cmd->add_option("--msaa", a->msaa, "Samples per pixel of the scene window (1: none); the impostor path's too where its edges need them (see --impostor-target)")
       ->capture_default_str()->check(CLI::IsMember({1, 2, 4, 8}));
+  cmd->add_option("--impostor-target", a->impostor_target,
+                  "The impostor path's target: auto (single-sampled where the edges need no samples: blend, test; the same frames) or scene (--msaa samples)")
+      ->capture_default_str();
   cmd->add_option("--texels-per-pixel", a->texels_per_pixel, "Impostor window texels per screen pixel")
       ->capture_default_str()->check(CLI::Range(0.25, 4.0));
   cmd->add_option("--impostor-edges", a->impostor_edges,

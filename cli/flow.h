@@ -35,6 +35,9 @@ struct FlowSettings {
   float orbit_deg_per_s = 0.0f;  // camera orbit speed
   int quality_every = 4;         // compare images every k-th measured frame
   int msaa = 4;                  // samples per pixel of the scene window (both paths)
+  // Samples of the impostor path's target: 0 for runtime::impostor_target_samples (1 where the
+  // impostors' edges need no samples: the same frames, less to write), else this many.
+  int impostor_target_samples = 0;
   // Impostor windows chosen for this many texels per pixel, and how impostor edges meet the
   // scene. The test bed's defaults are the fastest setting that keeps edges antialiased: 1 texel
   // per pixel and sorted blending, which the runtime rasterizes single-sampled (on llvmpipe, 20
@@ -72,6 +75,7 @@ struct FlowFrameImages {
 
 struct FlowResult {
   int humans = 0, frames = 0, width = 0, height = 0;
+  int impostor_target_samples = 0;  // samples per pixel of the impostor path's target
   double geometry_ms = 0, impostor_ms = 0;  // mean per frame
   // Spread of the per-frame times over the measured frames: 95th percentile, worst, and standard
   // deviation (ms). What a crowd-level refresh budget (CacheConfig::refresh_budget) flattens.
@@ -122,6 +126,7 @@ struct FlowArgs {
   std::string screen_weighting = "32";
   float orbit = 0;
   int msaa = 4;
+  std::string impostor_target = "auto";  // auto or scene (the impostor path's target has --msaa samples)
   float texels_per_pixel = 1.0f;  // see FlowSettings
   std::string impostor_edges = "auto", snapshot_lod = "screen", snapshot_camera = "perspective";
   bool hold_poses = false;

@@ -104,7 +104,10 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   FramePlanner planner(model, config);
   auto target_g = OffscreenTarget::create(s.width, s.height, s.msaa);
   if (!target_g) return target_g.error();
-  auto target_i = OffscreenTarget::create(s.width, s.height, s.msaa);
+  // Impostor frames hold impostors only: blended edges need no multisampled target.
+  out.impostor_target_samples =
+      s.impostor_target_samples > 0 ? s.impostor_target_samples : impostor_target_samples(draw_options.edges, s.msaa);
+  auto target_i = OffscreenTarget::create(s.width, s.height, out.impostor_target_samples);
   if (!target_i) return target_i.error();
 
   // The crowd: concentric circles, a few humans per circle, speeds 0.6 .. 1.8 m/s, alternate

@@ -1237,6 +1237,19 @@ double Renderer::drawn_quad_texels(const FramePlan& plan) const {
   return texels;
 }
 
+int impostor_target_samples(ImpostorEdges edges, int scene_samples) {
+  switch (edges) {
+    case ImpostorEdges::kBlend:
+      return 1;
+    case ImpostorEdges::kSamples:
+    case ImpostorEdges::kAlphaToCoverage:
+    case ImpostorEdges::kAlphaTest:
+    case ImpostorEdges::kCentre:
+      break;
+  }
+  return std::max(1, scene_samples);
+}
+
 Result<std::unique_ptr<OffscreenTarget>> OffscreenTarget::create(int width, int height, int samples) {
   if (width <= 0 || height <= 0 || width > 16384 || height > 16384)
     return Error{"", "target", "size " + std::to_string(width) + "x" + std::to_string(height) + " is out of range"};

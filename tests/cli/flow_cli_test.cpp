@@ -189,6 +189,42 @@ TEST(FlowCli, ExactSnapshotsCopyTheGeometryFrame) {
   EXPECT_GT(je["psnr_db"].get<double>(), jf["psnr_db"].get<double>() + 10.0);
 }
 
+// Impostor frames hold impostors only. With blended edges (the default) every sample of a pixel
+// gets the same colour, so the impostor path draws into a single-sampled target
+// (runtime::impostor_target_samples) and its frames are the ones a multisampled target gives:
+// the same comparison with the geometry frames, to the last bit. Alpha to coverage and the alpha
+// test write a share of the samples and keep the scene's.
+TEST(FlowCli, ImpostorFramesNeedNoMultisampledTargetWhenBlended) {
+  std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
+  fs::path d = fs::temp_directory_path() / "bb_flow_cli_test_target";
+  const std::string args = "flow --model " + model + " --size 480x384 --posture 0.2 --view 4 --json -o " + d.string();
+  Out single = run(args + " --frames 8");  // --impostor-edges auto: blend
+  if (single.text.find("EGL") != std::string::npos && single.status != 0) GTEST_SKIP() << "no headless OpenGL: " << single.text;
+  ASSERT_EQ(single.status, 0) << single.text;
+  Out scene = run(args + " --frames 8 --impostor-target scene");
+  ASSERT_EQ(scene.status, 0) << scene.text;
+  auto js = nlohmann::json::parse(last_json_line(single.text));
+  auto jm = nlohmann::json::parse(last_json_line(scene.text));
+  EXPECT_EQ(js["impostor_edges"], "blend");
+  EXPECT_EQ(js["msaa"], 4);
+  EXPECT_EQ(js["impostor_target_samples"], 1);
+  EXPECT_EQ(jm["impostor_target_samples"], 4);
+  EXPECT_GT(js["refresh_fraction"].get<double>(), 0.0);  // snapshots taken while measured
+  EXPECT_DOUBLE_EQ(js["psnr_db"].get<double>(), jm["psnr_db"].get<double>());
+  EXPECT_DOUBLE_EQ(js["ssim"].get<double>(), jm["ssim"].get<double>());
+  for (const char* c : {"interior", "edge", "one_only"})
+    EXPECT_DOUBLE_EQ(js["error_split"][c]["mse"].get<double>(), jm["error_split"][c]["mse"].get<double>()) << c;
+  for (const char* edges : {"coverage", "test"}) {
+    Out o = run(args + " --frames 1 --impostor-edges " + edges);
+    ASSERT_EQ(o.status, 0) << o.text;
+    EXPECT_EQ(nlohmann::json::parse(last_json_line(o.text))["impostor_target_samples"], 4) << edges;
+  }
+  Out none = run(args + " --frames 1 --msaa 1 --impostor-edges coverage");
+  ASSERT_EQ(none.status, 0) << none.text;
+  EXPECT_EQ(nlohmann::json::parse(last_json_line(none.text))["impostor_target_samples"], 1);
+}
+
 TEST(FlowCli, BadFlagsAreErrors) {
   for (const char* args : {"flow --size 12", "flow --mode fast", "flow --posture -1", "flow --view abc",
                            "flow --sweep size", "flow --model /nonexistent.glb --frames 1",
@@ -196,7 +232,7 @@ TEST(FlowCli, BadFlagsAreErrors) {
                            "flow --refresh-budget -1", "flow --limb-cards round", "flow --snapshot-grid texels",
                            "flow --snapshot-samples 3", "flow --quad-fit hull", "flow --planner-threads -1",
                            "flow --card-depth maybe", "flow --card-lead maybe", "flow --screen-weighting 0",
-                           "flow --screen-weighting tall", "flow --snapshot-scale half"}) {
+                           "flow --screen-weighting tall", "flow --snapshot-scale half", "flow --impostor-target msaa"}) {
     Out o = run(args);
     EXPECT_NE(o.status, 0) << args;
     EXPECT_NE(o.text.find("flow"), std::string::npos) << args << ": " << o.text;
