@@ -5,6 +5,8 @@
 // (same scene time, interleaved in one run); a frame's time is the CPU planning plus the GPU work
 // to completion (glFinish), so both paths are measured alike. Impostor frames are compared with
 // the geometry frame of the same instant (PSNR over covered pixels, SSIM).
+// The geometry path draws into a target with `msaa` samples; the impostor path into a single-sampled
+// one when its edges blend (runtime::impostor_target_samples: the same frames), else the same.
 #pragma once
 
 #include <optional>
