@@ -36,7 +36,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["frames"] = r.frames;
   j["size"] = std::to_string(r.width) + "x" + std::to_string(r.height);
   j["msaa"] = s.msaa;
-  j["impostor_target_samples"] = r.impostor_target_samples;
+  if (s.impostor) j["impostor_target_samples"] = r.impostor_target_samples;
   j["texels_per_pixel"] = s.texels_per_pixel;
   auto r3 = [](float v) { return std::round(static_cast<double>(v) * 1000.0) / 1000.0; };
   j["posture"] = s.posture_test ? ordered_json(r3(s.posture_threshold)) : ordered_json("off");
