@@ -35,7 +35,8 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["humans"] = r.humans;
   j["frames"] = r.frames;
   j["size"] = std::to_string(r.width) + "x" + std::to_string(r.height);
-  j["msaa"] = s.msaa;
+  j["msaa"] = s.geometry ? r.geometry_target_samples : s.msaa;  // what the scene window has
+  if (s.geometry && r.geometry_target_samples != s.msaa) j["msaa_asked"] = s.msaa;
   if (s.impostor) j["impostor_target_samples"] = r.impostor_target_samples;
   j["texels_per_pixel"] = s.texels_per_pixel;
   auto r3 = [](float v) { return std::round(static_cast<double>(v) * 1000.0) / 1000.0; };
@@ -232,6 +233,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   ordered_json report;
   auto result = run_flow(*model, s, device);
   if (!result) return fail(result.error().message());
+  if (s.geometry && result->geometry_target_samples != s.msaa)
+    std::fprintf(stderr, "flow: --msaa %d: this device gives %d samples per pixel, measured with those\n", s.msaa,
+                 result->geometry_target_samples);
   report = to_json(*result, s);
   report["model"] = model_path;
   report["device"] = device;

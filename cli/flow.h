@@ -77,7 +77,9 @@ struct FlowFrameImages {
 
 struct FlowResult {
   int humans = 0, frames = 0, width = 0, height = 0;
-  int impostor_target_samples = 0;  // samples per pixel of the impostor path's target
+  // Samples per pixel of each path's target as the driver gave them (llvmpipe: 1 or 4, whatever
+  // --msaa asked).
+  int geometry_target_samples = 0, impostor_target_samples = 0;
   double geometry_ms = 0, impostor_ms = 0;  // mean per frame
   // Spread of the per-frame times over the measured frames: 95th percentile, worst, and standard
   // deviation (ms). What a crowd-level refresh budget (CacheConfig::refresh_budget) flattens.

@@ -105,10 +105,12 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
   auto target_g = OffscreenTarget::create(s.width, s.height, s.msaa);
   if (!target_g) return target_g.error();
   // Impostor frames hold impostors only: blended edges need no multisampled target.
-  out.impostor_target_samples =
+  const int samples_i =
       s.impostor_target_samples > 0 ? s.impostor_target_samples : impostor_target_samples(draw_options.edges, s.msaa);
-  auto target_i = OffscreenTarget::create(s.width, s.height, out.impostor_target_samples);
+  auto target_i = OffscreenTarget::create(s.width, s.height, samples_i);
   if (!target_i) return target_i.error();
+  out.geometry_target_samples = (*target_g)->samples();
+  out.impostor_target_samples = (*target_i)->samples();
 
   // The crowd: concentric circles, a few humans per circle, speeds 0.6 .. 1.8 m/s, alternate
   // directions. Circles are spaced so that neighbours do not collide.

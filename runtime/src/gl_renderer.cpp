@@ -1262,6 +1262,10 @@ Result<std::unique_ptr<OffscreenTarget>> OffscreenTarget::create(int width, int 
   const GLsizei ms = t->samples_ > 1 ? t->samples_ : 0;
   glCreateRenderbuffers(1, &t->color_);
   glNamedRenderbufferStorageMultisample(t->color_, ms, GL_RGBA8, width, height);
+  // The driver may give more samples than asked (llvmpipe: 2 -> 4): what it gave.
+  GLint given = 0;
+  glGetNamedRenderbufferParameteriv(t->color_, GL_RENDERBUFFER_SAMPLES, &given);
+  t->samples_ = std::max(1, static_cast<int>(given));
   glCreateRenderbuffers(1, &t->depth_);
   glNamedRenderbufferStorageMultisample(t->depth_, ms, GL_DEPTH_COMPONENT24, width, height);
   if (ms) {

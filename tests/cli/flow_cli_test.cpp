@@ -223,6 +223,19 @@ TEST(FlowCli, ImpostorFramesNeedNoMultisampledTargetWhenBlended) {
   Out none = run(args + " --frames 1 --msaa 1 --impostor-edges coverage");
   ASSERT_EQ(none.status, 0) << none.text;
   EXPECT_EQ(nlohmann::json::parse(last_json_line(none.text))["impostor_target_samples"], 1);
+  // The report gives the samples the device gave (llvmpipe has 1 or 4), and what was asked when
+  // they differ.
+  Out two = run(args + " --frames 1 --msaa 2 --impostor-target scene");
+  ASSERT_EQ(two.status, 0) << two.text;
+  auto j2 = nlohmann::json::parse(last_json_line(two.text));
+  EXPECT_GE(j2["msaa"].get<int>(), 2);
+  EXPECT_EQ(j2["impostor_target_samples"], j2["msaa"]);
+  if (j2["msaa"] != 2) {
+    EXPECT_EQ(j2["msaa_asked"], 2);
+    EXPECT_NE(two.text.find("--msaa 2: this device gives"), std::string::npos) << two.text;
+  } else {
+    EXPECT_FALSE(j2.contains("msaa_asked"));
+  }
 }
 
 TEST(FlowCli, BadFlagsAreErrors) {

@@ -379,6 +379,47 @@ TEST(ImpostorEdges, BlendingIsBackToFront) {
   EXPECT_EQ(differ, 0);
 }
 
+// Blended impostors are rasterized single-sampled, so a frame of them alone is the same in a
+// single-sampled target as in a multisampled one (impostor_target_samples says 1 for kBlend only):
+// two squares whose soft edges overlap, to the byte.
+TEST(ImpostorEdges, BlendedImpostorsAloneNeedNoMultisampledTarget) {
+  REQUIRE_GL();
+  EXPECT_EQ(impostor_target_samples(ImpostorEdges::kBlend, 4), 1);
+  EXPECT_EQ(impostor_target_samples(ImpostorEdges::kSamples, 4), 4);
+  EXPECT_EQ(impostor_target_samples(ImpostorEdges::kAlphaToCoverage, 8), 8);
+  EXPECT_EQ(impostor_target_samples(ImpostorEdges::kAlphaTest, 4), 4);
+  EXPECT_EQ(impostor_target_samples(ImpostorEdges::kCentre, 0), 1);
+  Model m = square_model();
+  ImpostorConfig cfg;
+  auto renderer = Renderer::create(m, cfg);
+  ASSERT_TRUE(renderer.ok()) << renderer.error().message();
+  SceneCamera cam;
+  cam.width = cam.height = 128;
+  cam.target = m.ta;
+  cam.eye = m.ta + glm::vec3(0, 0, cam.pixels_per_metre(1.0f) / 40.0f);
+  Crowd crowd(m);
+  crowd.add(Character{glm::vec3(0.4f, 0.0f, 1.0f)});
+  crowd.add(Character{});
+  auto frame = [&](int samples, int* given) {
+    auto target = OffscreenTarget::create(128, 128, samples);
+    EXPECT_TRUE(target.ok());
+    *given = (*target)->samples();
+    FramePlanner planner(m, cfg);  // fresh snapshots for each target
+    (*target)->bind(true);
+    (*renderer)->draw(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor));
+    return (*target)->read_rgba();
+  };
+  int ms = 0, ss = 0;
+  const auto multi = frame(4, &ms);
+  const auto single = frame(impostor_target_samples(ImpostorEdges::kBlend, 4), &ss);
+  EXPECT_GE(ms, 4);  // the driver may give more than asked, never fewer
+  EXPECT_EQ(ss, 1);
+  int partial = 0;
+  for (std::size_t i = 3; i < multi.size(); i += 4) partial += multi[i] > 0 && multi[i] < 255;
+  EXPECT_GT(partial, 100);  // soft edges, some over the other square
+  EXPECT_EQ(single, multi);
+}
+
 // The crowd of CrowdRender in a 4x multisampled target, as the flow test bed draws it.
 TEST(CrowdRender, MultisampledImpostorFramesMatchGeometryFrames) {
   REQUIRE_GL();

@@ -119,7 +119,8 @@ class Renderer {
 };
 
 // An offscreen framebuffer (RGBA8 colour + 24-bit depth) to render into headless; `samples` > 1
-// makes it multisampled (read_rgba resolves it).
+// makes it multisampled (read_rgba resolves it), clamped to GL_MAX_SAMPLES; samples() is what the
+// driver gave, which may be more than asked.
 class OffscreenTarget {
  public:
   static Result<std::unique_ptr<OffscreenTarget>> create(int width, int height, int samples = 1);
@@ -132,6 +133,7 @@ class OffscreenTarget {
   std::vector<std::uint8_t> read_rgba() const;
   int width() const { return width_; }
   int height() const { return height_; }
+  int samples() const { return samples_; }
 
  private:
   OffscreenTarget() = default;
