@@ -430,7 +430,7 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--msaa", a->msaa, "Samples per pixel of the scene window (1: none); the impostor path's too where its edges need them (see --impostor-target)")
       ->capture_default_str()->check(CLI::IsMember({1, 2, 4, 8}));
   cmd->add_option("--impostor-target", a->impostor_target,
-                  "The impostor path's target: auto (single-sampled where the edges need no samples: blend, test; the same frames) or scene (--msaa samples)")
+                  "The impostor path's target: auto (single-sampled where the edges blend: the same frames, less to write) or scene (--msaa samples)")
       ->capture_default_str();
   cmd->add_option("--texels-per-pixel", a->texels_per_pixel, "Impostor window texels per screen pixel")
       ->capture_default_str()->check(CLI::Range(0.25, 4.0));

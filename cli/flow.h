@@ -36,7 +36,7 @@ struct FlowSettings {
   float screen_weighting_px = 32.0f;  // CacheConfig::reference_pixels (0: off)
   float orbit_deg_per_s = 0.0f;  // camera orbit speed
   int quality_every = 4;         // compare images every k-th measured frame
-  int msaa = 4;                  // samples per pixel of the scene window (both paths)
+  int msaa = 4;                  // samples per pixel of the scene window (the geometry path's target)
   // Samples of the impostor path's target: 0 for runtime::impostor_target_samples (1 where the
   // impostors' edges need no samples: the same frames, less to write), else this many.
   int impostor_target_samples = 0;

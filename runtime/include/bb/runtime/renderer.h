@@ -51,9 +51,8 @@ enum class ImpostorEdges {
 // rasterized single-sampled, so every sample of a pixel holds the same colour and the resolved
 // frame is the same to the bit; `scene_samples` for the others, which write a share of the samples
 // (the alpha-tested modes too: the quads' own edges are multisampled, the frames differ by
-// ~0.001 dB). On llvmpipe a multisampled
-// target costs a blended impostor pixel its four samples' memory (flow test bed, 17 degrees:
-// impostor frame 25-30 % faster single-sampled, the Fox and our humans).
+// ~0.001 dB). On llvmpipe a 4x target makes a blended impostor pixel read and write four samples
+// (flow test bed, 17 degrees: the impostor frame 25-30 % faster single-sampled, the Fox and ours).
 int impostor_target_samples(ImpostorEdges edges, int scene_samples);
 
 struct DrawOptions {
