@@ -259,7 +259,8 @@ TEST(DemoCli, WritesTheLodSetFramesChartsAndReport) {
   if (o.text.find("EGL") != std::string::npos && o.status != 0) GTEST_SKIP() << "no headless OpenGL: " << o.text;
   ASSERT_EQ(o.status, 0) << o.text;
   for (const char* f : {"default.glb", "default_body.png", "report.md", "demo.json", "sweep_posture.png",
-                        "sweep_view.png", "scaling.png", "frame_0_impostors_vs_geometry.png"})
+                        "sweep_view.png", "scaling.png", "frame_0_impostors_vs_geometry.png", "view_whole_vs_parts.png",
+                        "view_whole_vs_parts_quality.png", "parts/sweep_view.png", "parts/flow.json"})
     EXPECT_TRUE(fs::exists(d / f)) << f;
   // The folder's flow.json and sample frames are the main run's (4 frames: 0 and 2), not those of
   // the sweeps (10 frames) or crowd sizes (2 frames) run after it into the same folder.
@@ -290,6 +291,17 @@ TEST(DemoCli, WritesTheLodSetFramesChartsAndReport) {
   }
   const auto& largest = j["scaling"].back();
   EXPECT_LT(largest["refresh_fraction"].get<double>(), 0.5 * largest["unweighted"]["refresh_fraction"].get<double>());
+  // Part cards at 8 degrees, and over the same view thresholds as the whole impostors' sweep, with
+  // the posture test off; the 8-degree run holds no sweep of its own.
+  EXPECT_FALSE(j["part_cards"].contains("sweep"));
+  EXPECT_EQ(j["part_cards"]["posture"], "off");
+  ASSERT_EQ(j["part_cards_view_sweep"].size(), j["view_sweep"].size());
+  for (std::size_t k = 0; k < j["view_sweep"].size(); ++k) {
+    const auto& p = j["part_cards_view_sweep"][k];
+    EXPECT_EQ(p["threshold"], j["view_sweep"][k]["threshold"]);
+    EXPECT_EQ(p["posture"], "off");
+    EXPECT_TRUE(p["impostor_parts"].is_array());
+  }
   EXPECT_EQ(j["part_cards_quality"]["card_depth"], "pass");
   EXPECT_EQ(j["part_cards_quality"]["card_lead"], "on");
   // The targets table agrees with the runs it summarises.
