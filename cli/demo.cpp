@@ -198,6 +198,7 @@ int run_demo(const std::string& dir, int frames, bool full) {
   // The same at the best image quality: 2 texels per pixel, blended edges, depth-corrected cards
   // with a depth pass.
   FlowArgs pq = pc;
+  pq.sweep.clear();  // the 8-degree run alone
   pq.texels_per_pixel = 2.0f;
   pq.impostor_edges = "blend";
   pq.card_depth = "pass";

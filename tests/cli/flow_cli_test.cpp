@@ -303,6 +303,8 @@ TEST(DemoCli, WritesTheLodSetFramesChartsAndReport) {
     EXPECT_TRUE(p["impostor_parts"].is_array());
   }
   EXPECT_EQ(j["part_cards_quality"]["card_depth"], "pass");
+  EXPECT_FALSE(j["part_cards_quality"].contains("sweep"));
+  EXPECT_FALSE(fs::exists(d / "parts_quality" / "sweep_view.json"));
   EXPECT_EQ(j["part_cards_quality"]["card_lead"], "on");
   // The targets table agrees with the runs it summarises.
   ASSERT_TRUE(j["targets"].is_array());
