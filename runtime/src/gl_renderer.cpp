@@ -264,10 +264,14 @@ void main() {
 // coordinates look the window up inside the pixel: at the framebuffer's own sample positions
 // (BB_PER_SAMPLE: each sample covered where the window is at least half covered), or at the
 // standard 4x pattern, averaged (coverage as alpha).
+// One program per edge mode and tap count (BB_EDGES, BB_TAPS): llvmpipe runs both sides of a
+// branch on a uniform, so a mode chosen by uniform paid for every other mode's taps (flow test bed,
+// SimpleSkin, nothing refreshed: the quad pass 8 % slower with two spare taps, twice as slow with
+// five).
+//   BB_EDGES 0: alpha test, 1: premultiplied blending, 2: alpha to coverage, 4: one tap
+//   BB_TAPS 4: the pixel's coverage from four taps; 1: one tap (the texels hold it)
 const char* kBillboardFs = R"(#version 450 core
 layout(binding = 2) uniform sampler2DArray u_atlas;
-uniform int u_edges;  // 0: alpha test, 1: premultiplied blending, 2: alpha to coverage, 4: one tap
-uniform int u_taps;   // 4: the pixel's coverage from four taps; 1: one tap (the texels hold it)
 uniform int u_samples;
 uniform vec2 u_sample_pos[16];  // offsets from the pixel centre, pixels
 in vec3 v_uvl;
@@ -377,31 +381,34 @@ void main() {
     o_color = vec4(sum.rgb / sum.a, 1.0);
   }
 #else
-  if (u_edges == 4) {
-    // One tap at the pixel centre: at one texel per pixel, texels on pixels, an exact copy.
-    vec4 t = tap(uv0);
-    if (t.a < 0.5) discard;
-    o_color = vec4(t.rgb / t.a, 1.0);
-    return;
-  }
-  vec4 c = u_taps == 1 ? tap(uv0)
-                       : 0.25 * (tap(uv0 - 0.125 * dx - 0.375 * dy) + tap(uv0 + 0.375 * dx - 0.125 * dy) +
-                                 tap(uv0 - 0.375 * dx + 0.125 * dy) + tap(uv0 + 0.125 * dx + 0.375 * dy));
-  if (u_edges == 0) {
-    if (c.a < 0.5) discard;
-    o_color = vec4(c.rgb / c.a, 1.0);
-  } else if (u_edges == 2) {
-    // The alpha picks the share of the pixel's samples, so the colour goes in straight (and
-    // alpha to one makes the covered samples opaque).
-    if (c.a < 1.0 / 255.0) discard;
-    o_color = vec4(c.rgb / c.a, c.a);
-  } else {
-    if (c.a < 1.0 / 255.0) discard;
-#ifdef BB_CARD_DEPTH
-    if (u_depth_pass == 1 && c.a < 0.99) discard;  // the depth pass: opaque texels only
+#if BB_EDGES == 4
+  // One tap at the pixel centre: at one texel per pixel, texels on pixels, an exact copy.
+  vec4 t = tap(uv0);
+  if (t.a < 0.5) discard;
+  o_color = vec4(t.rgb / t.a, 1.0);
+#else
+#if BB_TAPS == 1
+  vec4 c = tap(uv0);
+#else
+  vec4 c = 0.25 * (tap(uv0 - 0.125 * dx - 0.375 * dy) + tap(uv0 + 0.375 * dx - 0.125 * dy) +
+                   tap(uv0 - 0.375 * dx + 0.125 * dy) + tap(uv0 + 0.125 * dx + 0.375 * dy));
 #endif
-    o_color = c;
-  }
+#if BB_EDGES == 0
+  if (c.a < 0.5) discard;
+  o_color = vec4(c.rgb / c.a, 1.0);
+#elif BB_EDGES == 2
+  // The alpha picks the share of the pixel's samples, so the colour goes in straight (and
+  // alpha to one makes the covered samples opaque).
+  if (c.a < 1.0 / 255.0) discard;
+  o_color = vec4(c.rgb / c.a, c.a);
+#else
+  if (c.a < 1.0 / 255.0) discard;
+#ifdef BB_CARD_DEPTH
+  if (u_depth_pass == 1 && c.a < 0.99) discard;  // the depth pass: opaque texels only
+#endif
+  o_color = c;
+#endif
+#endif
 #endif
 }
 )";
@@ -479,9 +486,9 @@ std::string layered(const std::string& src) {
   return v + "#extension GL_ARB_shader_viewport_layer_array : require\n#define BB_LAYERED 1\n" + src.substr(v.size());
 }
 
-// `src` with "#define name 1" after its #version line (a shader variant).
-std::string with_define(std::string src, const char* name) {
-  src.insert(src.find('\n') + 1, std::string("#define ") + name + " 1\n");
+// `src` with "#define name value" after its #version line (a shader variant).
+std::string with_define(std::string src, const char* name, int value = 1) {
+  src.insert(src.find('\n') + 1, std::string("#define ") + name + " " + std::to_string(value) + "\n");
   return src;
 }
 
@@ -567,7 +574,7 @@ struct Renderer::Impl {
   std::vector<GLuint> textures;  // per model texture
   GLuint white = 0;
   GLuint palette_buffer = 0, palette_texture = 0;
-  GLuint prog_geometry = 0, prog_snapshot = 0, prog_clear = 0, prog_billboard = 0, prog_billboard_samples = 0;
+  GLuint prog_geometry = 0, prog_snapshot = 0, prog_clear = 0;
   // Multisampled snapshots (ImpostorConfig::snapshot_samples > 1): a scratch page, resolved.
   GLuint prog_resolve = 0, scratch_color = 0, scratch_depth = 0, scratch_fbo = 0;
   // Quads fitted to the coverage: a rectangle (vec4) per smallest-window slot of the atlas.
@@ -609,16 +616,19 @@ struct Renderer::Impl {
   } shade_geometry, shade_snapshot;
   struct BillboardProgram {
     GLuint prog = 0;
-    GLint viewproj = -1, eye = -1, up = -1, edges = -1, samples = -1, sample_pos = -1, taps = -1, parallax_steps = -1,
-          depth_pass = -1;
-  } bb, bb_samples;  // averaged taps; per-sample coverage
+    GLint viewproj = -1, eye = -1, up = -1, samples = -1, sample_pos = -1, parallax_steps = -1, depth_pass = -1;
+  };
+  // The impostor shader per edge mode (BB_EDGES of kBillboardFs; 3: the per-sample program).
+  std::array<BillboardProgram, 5> bb;
   int sample_count = 0;  // of the sample positions last given to the impostor shader
 
   // `light` into every program that shades (the impostor programs only when they relight: elsewhere
   // the location is -1 and the call does nothing).
   void upload_light() {
-    for (GLuint p : {prog_geometry, prog_snapshot, prog_billboard, prog_billboard_samples})
-      glProgramUniform3fv(p, glGetUniformLocation(p, "u_light"), 1, glm::value_ptr(light));
+    auto upload = [&](GLuint p) { glProgramUniform3fv(p, glGetUniformLocation(p, "u_light"), 1, glm::value_ptr(light)); };
+    upload(prog_geometry);
+    upload(prog_snapshot);
+    for (const BillboardProgram& b : bb) upload(b.prog);
   }
 
   void set_material(GLuint prog, const Material& m) {
@@ -820,24 +830,21 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     for (std::string* src : {&bvs, &bfs}) *src = with_define(*src, "BB_CARD_DEPTH");
   if (d.relight)  // impostors lit as drawn
     for (std::string* src : {&bvs, &bfs}) *src = with_define(*src, "BB_RELIGHT");
-  auto pb = program(bvs, bfs, "impostor shader");
-  if (!pb) return pb.error();
-  d.prog_billboard = *pb;
-  auto pbs = program(bvs, with_define(bfs, "BB_PER_SAMPLE"), "impostor shader (per sample)");
-  if (!pbs) return pbs.error();
-  d.prog_billboard_samples = *pbs;
-  for (auto [prog, bp] : {std::pair{d.prog_billboard, &d.bb}, std::pair{d.prog_billboard_samples, &d.bb_samples}}) {
-    *bp = {prog,
-           glGetUniformLocation(prog, "u_viewproj"),
-           glGetUniformLocation(prog, "u_eye"),
-           glGetUniformLocation(prog, "u_up"),
-           glGetUniformLocation(prog, "u_edges"),
-           glGetUniformLocation(prog, "u_samples"),
-           glGetUniformLocation(prog, "u_sample_pos"),
-           glGetUniformLocation(prog, "u_taps"),
-           glGetUniformLocation(prog, "u_parallax_steps"),
-           glGetUniformLocation(prog, "u_depth_pass")};
-    glProgramUniform1i(prog, bp->parallax_steps, std::clamp(config.parallax_steps, 0, 16));
+  bfs = with_define(bfs, "BB_TAPS", d.snapshot_samples > 1 ? 1 : 4);
+  for (int mode = 0; mode < static_cast<int>(d.bb.size()); ++mode) {
+    auto pb = program(bvs, mode == 3 ? with_define(bfs, "BB_PER_SAMPLE") : with_define(bfs, "BB_EDGES", mode),
+                      (std::string("impostor shader (edges ") + std::to_string(mode) + ")").c_str());
+    if (!pb) return pb.error();
+    const GLuint prog = *pb;
+    d.bb[static_cast<std::size_t>(mode)] = {prog,
+                                            glGetUniformLocation(prog, "u_viewproj"),
+                                            glGetUniformLocation(prog, "u_eye"),
+                                            glGetUniformLocation(prog, "u_up"),
+                                            glGetUniformLocation(prog, "u_samples"),
+                                            glGetUniformLocation(prog, "u_sample_pos"),
+                                            glGetUniformLocation(prog, "u_parallax_steps"),
+                                            glGetUniformLocation(prog, "u_depth_pass")};
+    glProgramUniform1i(prog, d.bb[static_cast<std::size_t>(mode)].parallax_steps, std::clamp(config.parallax_steps, 0, 16));
   }
   const GLint psize = static_cast<GLint>(model.palette.size());
   glProgramUniform1i(d.prog_geometry, glGetUniformLocation(d.prog_geometry, "u_palette_size"), psize);
@@ -1035,8 +1042,8 @@ Renderer::~Renderer() {
     glDeleteRenderbuffers(1, &d.scratch_depth);
     glDeleteProgram(d.prog_resolve);
   }
-  for (GLuint p : {d.prog_geometry, d.prog_snapshot, d.prog_clear, d.prog_billboard, d.prog_billboard_samples})
-    glDeleteProgram(p);
+  for (GLuint p : {d.prog_geometry, d.prog_snapshot, d.prog_clear}) glDeleteProgram(p);
+  for (const Impl::BillboardProgram& b : d.bb) glDeleteProgram(b.prog);
 }
 
 void Renderer::set_light(glm::vec3 towards_light) {
@@ -1091,7 +1098,7 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
     glGetIntegerv(GL_SAMPLE_BUFFERS, &sample_buffers);
     if (sample_buffers > 0) glGetIntegerv(GL_SAMPLES, &samples);
     samples = std::clamp(samples, 1, 16);
-    int mode = 0;  // u_edges, or 3: the per-sample program
+    int mode = 0;  // BB_EDGES, or 3: the per-sample program
     switch (options.edges) {
       case ImpostorEdges::kSamples: mode = sample_buffers > 0 ? 3 : 0; break;
       case ImpostorEdges::kAlphaToCoverage: mode = sample_buffers > 0 ? 2 : 0; break;
@@ -1114,7 +1121,7 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
     } else {
       d.billboards.upload(plan.billboards.data(), plan.billboards.size() * sizeof(BillboardGpu));
     }
-    const Impl::BillboardProgram& bp = mode == 3 ? d.bb_samples : d.bb;
+    const Impl::BillboardProgram& bp = d.bb[static_cast<std::size_t>(mode)];
     glUseProgram(bp.prog);
     glProgramUniformMatrix4fv(bp.prog, bp.viewproj, 1, GL_FALSE, glm::value_ptr(viewproj));
     glProgramUniform3fv(bp.prog, bp.eye, 1, glm::value_ptr(plan.camera.eye));
@@ -1133,10 +1140,6 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
       }
       glProgramUniform2fv(bp.prog, bp.sample_pos, samples, pos.data());
       glProgramUniform1i(bp.prog, bp.samples, samples);
-    }
-    if (mode != 3) {
-      glProgramUniform1i(bp.prog, bp.edges, mode);
-      glProgramUniform1i(bp.prog, bp.taps, d.snapshot_samples > 1 ? 1 : 4);
     }
     if (mode == 2) {
       // The samples covered are wholly covered: alpha 1 in them (else the resolved pixel would
