@@ -293,7 +293,7 @@ in vec3 v_uvl;
 #ifdef BB_CARD_DEPTH
 // The snapshots' plane offsets, masked by coverage (kShadeFs's o_offset), filtered bilinearly.
 layout(binding = 4) uniform sampler2DArray u_offset;
-layout(binding = 6) uniform sampler2DArray u_offset_wide;  // the same at half resolution (kOffsetCs)
+layout(binding = 6) uniform sampler2DArray u_offset_wide;  // the same at a quarter of the resolution (kCoverageCs)
 in vec2 v_c;
 flat in vec3 v_eye;
 flat in vec4 v_snap;
@@ -416,6 +416,14 @@ void main() {
 // gathering 2x2 texels a step: on llvmpipe 0.43 ms a frame for the part cards' ~50 new snapshots
 // and 0.65 ms for 20 Fox windows, against 0.75 and 1.02 ms with 16x16 invocations fetching a texel
 // each (most of the part cards' windows are smaller than 16x16 groups of 2x2).
+//
+// With depth-corrected part cards (BB_OFFSETS) the same pass reads the snapshots' masked plane
+// offsets instead (their mask is the coverage) and also writes them at a quarter of the resolution
+// for each new card snapshot: each texel the mean of 4x4 (masked, like the offsets), so that where
+// the 2x2 around a point holds no covered texel the impostor shader finds the surface within about
+// four texels with one more fetch, and a silhouette can move outwards as the eye turns. Flow test
+// bed, part cards, 8 / 17 / 90 degrees: 26.56 / 24.73 / 20.41 dB with 4x4, 26.56 / 24.67 / 20.17
+// with 2x2 (the four gathers around the point that it replaced: 26.56 / 24.73 / 20.47).
 const char* kCoverageCs = R"(#version 450 core
 layout(local_size_x = 4, local_size_y = 4) in;
 layout(binding = 2) uniform sampler2DArray u_atlas;
@@ -424,9 +432,26 @@ struct Snapshot { vec4 instance[2], ho_half, uo_dist, vo, ta, window, rect, offs
 layout(std430, binding = 1) readonly buffer Snapshots { Snapshot snapshots[]; };
 uniform float u_page;  // page size, texels
 shared int lo_x, lo_y, hi_x, hi_y;
+#ifdef BB_OFFSETS
+layout(binding = 4) uniform sampler2DArray u_offset;
+layout(binding = 0, rg16f) uniform writeonly image2DArray u_wide;
+ivec2 a = ivec2(1 << 30), b = ivec2(-(1 << 30)), t0, t1;
+// Texel t, covered or not (m > 0), into the covered rectangle if it lies in [t0, t1].
+void cover(ivec2 t, float m) {
+  if (m > 0.0 && all(greaterThanEqual(t, t0)) && all(lessThanEqual(t, t1))) {
+    a = min(a, t);
+    b = max(b, t);
+  }
+}
+#endif
 void main() {
   Snapshot s = snapshots[gl_WorkGroupID.x];
+#ifdef BB_OFFSETS
+  bool wide = s.part.x >= 0.0 && s.vo.w > 0.5;  // a perspective card snapshot
+  if (s.part.z < 0.5 && !wide) return;  // the whole work group: nothing to do
+#else
   if (s.part.z < 0.5) return;  // the whole work group: not fitted
+#endif
   if (gl_LocalInvocationIndex == 0u) {
     lo_x = 1 << 30;
     lo_y = 1 << 30;
@@ -437,10 +462,41 @@ void main() {
   float size = s.window.z * u_page;
   vec2 origin = (s.window.xy - s.window.z + 1.0) * 0.5 * u_page;  // window's lower-left texel
   ivec2 lo = ivec2(origin), hi = ivec2(origin + size) - 1;
-  ivec2 t0 = clamp(ivec2(floor(origin + (s.quad.xy + 1.0) * 0.5 * size)), lo, hi);
-  ivec2 t1 = clamp(ivec2(ceil(origin + (s.quad.zw + 1.0) * 0.5 * size)) - 1, lo, hi);
+#ifndef BB_OFFSETS
+  ivec2 t0, t1, a = ivec2(1 << 30), b = ivec2(-(1 << 30));
+#endif
+  t0 = clamp(ivec2(floor(origin + (s.quad.xy + 1.0) * 0.5 * size)), lo, hi);
+  t1 = clamp(ivec2(ceil(origin + (s.quad.zw + 1.0) * 0.5 * size)) - 1, lo, hi);
   float layer = s.window.w;
-  ivec2 a = ivec2(1 << 30), b = ivec2(-(1 << 30));
+#ifdef BB_OFFSETS
+  // Blocks of 4x4 texels (the wide texels): over the quad and a block more each side where the
+  // wide texels are wanted, else over the quad. Windows lie on multiples of 4 texels.
+  ivec2 w0 = t0 >> 2, w1 = t1 >> 2;
+  if (wide) {
+    w0 = max(w0 - 1, lo >> 2);
+    w1 = min(w1 + 1, hi >> 2);
+  }
+  if (s.part.z < 0.5) t1 = t0 - 1;  // not fitted: no texel counts
+  vec2 inv = 1.0 / vec2(textureSize(u_offset, 0).xy);
+  for (int by = w0.y + int(gl_LocalInvocationID.y); by <= w1.y; by += 4)
+    for (int bx = w0.x + int(gl_LocalInvocationID.x); bx <= w1.x; bx += 4) {
+      vec2 sum = vec2(0.0);
+      for (int j = 0; j < 4; j += 2)
+        for (int i = 0; i < 4; i += 2) {
+          // One gather each of the masks and the masked offsets of 2x2 texels: x: (0,1), y: (1,1),
+          // z: (1,0), w: (0,0).
+          ivec2 q = 4 * ivec2(bx, by) + ivec2(i, j);
+          vec3 p = vec3(vec2(q + 1) * inv, layer);
+          vec4 m = textureGather(u_offset, p, 1);
+          sum += vec2(dot(textureGather(u_offset, p, 0), vec4(1.0)), dot(m, vec4(1.0)));
+          cover(q + ivec2(0, 1), m.x);
+          cover(q + ivec2(1, 1), m.y);
+          cover(q + ivec2(1, 0), m.z);
+          cover(q, m.w);
+        }
+      if (wide) imageStore(u_wide, ivec3(bx, by, int(layer)), vec4(sum / 16.0, 0.0, 0.0));
+    }
+#else
   // 2x2 texels per step: one gather of their alphas (x: (0,1), y: (1,1), z: (1,0), w: (0,0)),
   // texels past t1 (the next window's) masked out. A quarter of the fetches of one per texel.
   vec2 inv = 1.0 / vec2(textureSize(u_atlas, 0).xy);
@@ -454,6 +510,7 @@ void main() {
         b = max(b, ivec2(c.y || c.z ? x + 1 : x, c.x || c.y ? y + 1 : y));
       }
     }
+#endif
   if (a.x <= b.x) {
     atomicMin(lo_x, a.x);
     atomicMin(lo_y, a.y);
@@ -461,7 +518,7 @@ void main() {
     atomicMax(hi_y, b.y);
   }
   barrier();
-  if (gl_LocalInvocationIndex == 0u) {
+  if (gl_LocalInvocationIndex == 0u && s.part.z > 0.5) {
     vec4 r = vec4(1.0, 1.0, -1.0, -1.0);  // empty
     if (lo_x <= hi_x) {
       // Texels [lo, hi + 1) and the taps' reach (part.w texels) each side, as window units.
@@ -471,45 +528,6 @@ void main() {
     }
     covered[int(s.part.y)] = r;
   }
-}
-)";
-
-// Depth-corrected part cards: per new card snapshot (one work group), its window's masked plane
-// offsets at a quarter of the resolution (each texel the mean of kWide x kWide), so that where the
-// 2x2 around a point holds no covered texel the impostor shader finds the surface within about
-// four texels with one more fetch, and a silhouette can move outwards as the eye turns. Flow test
-// bed, part cards, 8 / 17 / 90 degrees: 26.56 / 24.73 / 20.41 dB with 4x4, 26.56 / 24.67 / 20.17
-// with 2x2 (the four gathers around the point it replaces: 26.56 / 24.73 / 20.47).
-constexpr int kWide = 4;
-const char* kOffsetCs = R"(#version 450 core
-layout(local_size_x = 8, local_size_y = 8) in;
-layout(binding = 4) uniform sampler2DArray u_offset;
-layout(binding = 0, rg16f) uniform writeonly image2DArray u_wide;
-struct Snapshot { vec4 instance[2], ho_half, uo_dist, vo, ta, window, rect, offset, part, quad; };  // SnapshotGpu
-layout(std430, binding = 1) readonly buffer Snapshots { Snapshot snapshots[]; };
-uniform float u_page;  // page size, texels
-void main() {
-  Snapshot s = snapshots[gl_WorkGroupID.x];
-  if (s.part.x < 0.0 || s.vo.w < 0.5) return;  // a whole character, or orthographic: no offsets
-  float size = s.window.z * u_page;
-  vec2 origin = (s.window.xy - s.window.z + 1.0) * 0.5 * u_page;  // window's lower-left texel
-  // The planner's quad (the shader looks inside it), a texel more each side, within the window.
-  const float B = float(BB_WIDE);
-  vec2 lo = origin / B, hi = (origin + size) / B;
-  ivec2 t0 = ivec2(max(floor((origin + (s.quad.xy + 1.0) * 0.5 * size) / B) - 1.0, lo));
-  ivec2 t1 = ivec2(min(ceil((origin + (s.quad.zw + 1.0) * 0.5 * size) / B) + 1.0, hi));
-  vec2 inv = 1.0 / vec2(textureSize(u_offset, 0).xy);
-  float layer = s.window.w;
-  for (int y = t0.y + int(gl_LocalInvocationID.y); y < t1.y; y += 8)
-    for (int x = t0.x + int(gl_LocalInvocationID.x); x < t1.x; x += 8) {
-      vec2 sum = vec2(0.0);
-      for (int j = 0; j < BB_WIDE; j += 2)
-        for (int i = 0; i < BB_WIDE; i += 2) {
-          vec3 p = vec3(vec2(BB_WIDE * x + i + 1, BB_WIDE * y + j + 1) * inv, layer);
-          sum += vec2(dot(textureGather(u_offset, p, 0), vec4(1.0)), dot(textureGather(u_offset, p, 1), vec4(1.0)));
-        }
-      imageStore(u_wide, ivec3(x, y, int(layer)), vec4(sum / (B * B), 0.0, 0.0));
-    }
 }
 )";
 
@@ -620,7 +638,7 @@ struct Renderer::Impl {
   bool relight = false;     // ImpostorConfig::relight (layered, one-sample snapshots only)
   GLuint atlas_normal = 0;  // relit snapshots' normals, same pages as the atlas
   GLuint atlas_offset = 0;  // depth-corrected cards' masked plane offsets (RG16F), same pages
-  GLuint atlas_offset_wide = 0, prog_offset = 0;  // the same at half resolution, made by kOffsetCs
+  GLuint atlas_offset_wide = 0;  // the same at a quarter of the resolution, made by kCoverageCs
   bool fits_due = false;  // a snapshot of this frame wants its rectangle
   // DrawOptions::time_stages: timestamps at the start and after snapshots, coverage, geometry,
   // impostors.
@@ -730,27 +748,21 @@ struct Renderer::Impl {
 void Renderer::Impl::take_snapshots(const FramePlan& plan, bool time_stages) {
   take_snapshot_passes(plan);
   stamp(time_stages, 1);
-  if (parallax && !snapshot_scratch.empty()) {
-    // The new card snapshots' plane offsets at half resolution (one work group each).
-    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT);
-    glUseProgram(prog_offset);
-    glBindTextureUnit(4, atlas_offset);
-    glBindImageTexture(0, atlas_offset_wide, 0, GL_TRUE, 0, GL_WRITE_ONLY, GL_RG16F);
-    glBindBufferRange(GL_SHADER_STORAGE_BUFFER, 1, snapshots.id, 0,
-                      static_cast<GLsizeiptr>(snapshot_scratch.size() * sizeof(SnapshotGpu)));
-    glDispatchCompute(static_cast<GLuint>(snapshot_scratch.size()), 1, 1);
-    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
-  }
-  if (fits_due) {
-    // The new snapshots' covered rectangles (one work group each; those not fitted return at once).
+  if (fits_due || (parallax && !snapshot_scratch.empty())) {
+    // The new snapshots' covered rectangles (one work group each; those not fitted return at once)
+    // and, for depth-corrected cards, their wide plane offsets.
     glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT);
     glUseProgram(prog_coverage);
     glBindTextureUnit(2, atlas);
+    if (parallax) {
+      glBindTextureUnit(4, atlas_offset);
+      glBindImageTexture(0, atlas_offset_wide, 0, GL_TRUE, 0, GL_WRITE_ONLY, GL_RG16F);
+    }
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, coverage);
     glBindBufferRange(GL_SHADER_STORAGE_BUFFER, 1, snapshots.id, 0,
                       static_cast<GLsizeiptr>(snapshot_scratch.size() * sizeof(SnapshotGpu)));
     glDispatchCompute(static_cast<GLuint>(snapshot_scratch.size()), 1, 1);
-    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+    glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_TEXTURE_FETCH_BARRIER_BIT);
   }
   stamp(time_stages, 2);
 }
@@ -861,7 +873,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     d.prog_resolve = *pr;
   }
   {
-    auto cs = compile(GL_COMPUTE_SHADER, kCoverageCs, "coverage shader");
+    auto cs = compile(GL_COMPUTE_SHADER, d.parallax ? with_define(kCoverageCs, "BB_OFFSETS") : std::string(kCoverageCs),
+                      "coverage shader");
     if (!cs) return cs.error();
     auto pcov = link({*cs}, "coverage shader");
     if (!pcov) return pcov.error();
@@ -873,14 +886,6 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     const std::vector<glm::vec4> whole(static_cast<std::size_t>(std::max(1, config.max_pages) * per_row * per_row),
                                        glm::vec4(-1.0f, -1.0f, 1.0f, 1.0f));
     glNamedBufferStorage(d.coverage, static_cast<GLsizeiptr>(whole.size() * sizeof(glm::vec4)), whole.data(), 0);
-  }
-  if (d.parallax) {
-    auto cs = compile(GL_COMPUTE_SHADER, with_define(kOffsetCs, "BB_WIDE", kWide), "plane offset shader");
-    if (!cs) return cs.error();
-    auto po = link({*cs}, "plane offset shader");
-    if (!po) return po.error();
-    d.prog_offset = *po;
-    glProgramUniform1f(d.prog_offset, glGetUniformLocation(d.prog_offset, "u_page"), static_cast<float>(config.page_size));
   }
   std::string bvs = kBillboardVs, bfs = kBillboardFs;
   d.depth_pass = d.parallax && config.parallax_depth_pass;
@@ -1038,7 +1043,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
       d.atlas_offset = page_array(GL_RG16F, GL_LINEAR);
       glNamedFramebufferTexture(d.atlas_fbo, GL_COLOR_ATTACHMENT2, d.atlas_offset, 0);
       glCreateTextures(GL_TEXTURE_2D_ARRAY, 1, &d.atlas_offset_wide);
-      glTextureStorage3D(d.atlas_offset_wide, 1, GL_RG16F, config.page_size / kWide, config.page_size / kWide, config.max_pages);
+      glTextureStorage3D(d.atlas_offset_wide, 1, GL_RG16F, config.page_size / 4, config.page_size / 4, config.max_pages);
       glTextureParameteri(d.atlas_offset_wide, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
       glTextureParameteri(d.atlas_offset_wide, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
       glTextureParameteri(d.atlas_offset_wide, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
@@ -1103,7 +1108,6 @@ Renderer::~Renderer() {
   if (d.atlas_normal) glDeleteTextures(1, &d.atlas_normal);
   if (d.atlas_offset) glDeleteTextures(1, &d.atlas_offset);
   if (d.atlas_offset_wide) glDeleteTextures(1, &d.atlas_offset_wide);
-  if (d.prog_offset) glDeleteProgram(d.prog_offset);
   if (d.layered)
     glDeleteTextures(1, &d.atlas_depth);
   else
