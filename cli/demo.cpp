@@ -306,16 +306,13 @@ int run_demo(const std::string& dir, int frames, bool full) {
       md << "| whole (one card per character) | " << num(r["speedup"].get<double>()) << "x | "
          << num(r["refresh_fraction"].get<double>(), 3) << " | " << num(r["psnr_db"].get<double>(), 1) << " | "
          << num(r["ssim"].get<double>(), 3) << " |\n";
-  md << "| part cards (`--impostor-parts`, blended edges; refresh counts cards) | " << num(parts["speedup"].get<double>()) << "x | "
-     << num(parts["refresh_fraction"].get<double>(), 3) << " | " << num(parts["psnr_db"].get<double>(), 1) << " | "
-     << num(parts["ssim"].get<double>(), 3) << " |\n";
-  md << "| part cards, depth-corrected (`--card-depth on`) | " << num(parts_depth["speedup"].get<double>()) << "x | "
-     << num(parts_depth["refresh_fraction"].get<double>(), 3) << " | " << num(parts_depth["psnr_db"].get<double>(), 1)
-     << " | " << num(parts_depth["ssim"].get<double>(), 3) << " |\n";
-  md << "| part cards, best quality (`--texels-per-pixel 2 --card-depth pass`) | "
-     << num(parts_quality["speedup"].get<double>()) << "x | " << num(parts_quality["refresh_fraction"].get<double>(), 3)
-     << " | " << num(parts_quality["psnr_db"].get<double>(), 1) << " | " << num(parts_quality["ssim"].get<double>(), 3)
-     << " |\n\n";
+  for (auto [label, run] : {std::pair{"part cards (`--impostor-parts`, blended edges; refresh counts cards)", &parts},
+                            std::pair{"part cards, depth-corrected (`--card-depth on`)", &parts_depth},
+                            std::pair{"part cards, best quality (`--texels-per-pixel 2 --card-depth pass`)", &parts_quality}})
+    md << "| " << label << " | " << num((*run)["speedup"].get<double>()) << "x | "
+       << num((*run)["refresh_fraction"].get<double>(), 3) << " | " << num((*run)["psnr_db"].get<double>(), 1) << " | "
+       << num((*run)["ssim"].get<double>(), 3) << " |\n";
+  md << "\n";
   md << "Cards are taken along their part's mean line of sight over their coming life (`--card-lead on`, the "
         "default). Depth-corrected cards find, per pixel, the snapshot texel on the pixel's own eye ray; the "
         "best-quality setting adds twice the texels and a depth pass and reaches 28 dB at 8 degrees, but on "

@@ -853,12 +853,16 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   if (!pg) return pg.error();
   d.prog_geometry = *pg;
   d.layered = has_gl_extension("GL_ARB_shader_viewport_layer_array") && !std::getenv("BB_NO_LAYERED_SNAPSHOTS");
-  d.relight = config.relight && d.layered && std::clamp(config.snapshot_samples, 1, 16) == 1;
+  d.snapshot_samples = std::clamp(config.snapshot_samples, 1, 16);
+  // Relit snapshots and depth-corrected cards write more targets beside the atlas: layered
+  // snapshots with one sample per texel only.
+  const bool extra_targets = d.layered && d.snapshot_samples == 1;
+  d.relight = config.relight && extra_targets;
+  d.parallax = config.parallax_cards && extra_targets;
   std::string svs = d.layered ? layered(std::string(kCommon) + kSnapshotVs) : std::string(kCommon) + kSnapshotVs;
   std::string sfs = kShadeFs;
   if (d.relight)  // snapshots of albedo and normals
     for (std::string* src : {&svs, &sfs}) *src = with_define(*src, "BB_NORMALS");
-  d.parallax = config.parallax_cards && d.layered && std::clamp(config.snapshot_samples, 1, 16) == 1;
   if (d.parallax)  // and of the surface's plane offsets
     for (std::string* src : {&svs, &sfs}) *src = with_define(*src, "BB_OFFSET");
   auto ps = program(svs, sfs, "snapshot shader");
@@ -867,7 +871,6 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   auto pc = program(d.layered ? layered(kClearVs) : std::string(kClearVs), kClearFs, "window clear shader");
   if (!pc) return pc.error();
   d.prog_clear = *pc;
-  d.snapshot_samples = std::clamp(config.snapshot_samples, 1, 16);
   if (d.snapshot_samples > 1) {
     auto pr = program(d.layered ? layered(kClearVs) : std::string(kClearVs), kResolveFs, "snapshot resolve shader");
     if (!pr) return pr.error();
