@@ -1146,7 +1146,12 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
   d.stamped = ts;
   d.stamp(ts, 0);
   // 1. Snapshots due (section 4: shared pages, few passes), then their coverage rectangles.
-  if (options.take_snapshots) d.take_snapshots(plan, ts);
+  if (options.take_snapshots) {
+    d.take_snapshots(plan, ts);
+  } else {  // no snapshot stage: its stamps now, not a previous frame's
+    d.stamp(ts, 1);
+    d.stamp(ts, 2);
+  }
   glViewport(0, 0, plan.camera.width, plan.camera.height);
   const glm::mat4 viewproj = plan.camera.projection() * plan.camera.view();
 
