@@ -111,6 +111,11 @@ void main() {
 }
 )";
 
+// One program per kind of material (ShadeProgram): BB_TEXTURED fetches the base colour texture,
+// BB_MASKED discards below the alpha cutoff. llvmpipe runs a fetch that a uniform makes useless
+// (a 1x1 white texture), and a shader that can discard loses the early depth test; the plain
+// variant has neither (flow test bed, our body untextured but for its lowest level, 4x MSAA:
+// the geometry frame about 10 % faster).
 const char* kShadeFs = R"(#version 450 core
 layout(binding = 1) uniform sampler2D u_tex;
 uniform vec4 u_color;
@@ -133,8 +138,14 @@ in float v_offset;
 layout(location = 2) out vec2 o_offset;
 #endif
 void main() {
+#ifdef BB_TEXTURED
   vec4 c = u_color * texture(u_tex, v_uv);
+#else
+  vec4 c = u_color;
+#endif
+#ifdef BB_MASKED
   if (c.a < u_cutoff) discard;
+#endif
   vec3 n = normalize(v_nrm);
   if (!gl_FrontFacing) n = -n;
 #ifdef BB_NORMALS
@@ -628,7 +639,14 @@ struct Renderer::Impl {
   std::vector<GLuint> textures;  // per model texture
   GLuint white = 0;
   GLuint palette_buffer = 0, palette_texture = 0;
-  GLuint prog_geometry = 0, prog_snapshot = 0, prog_clear = 0;
+  // kShadeFs's variants for the geometry and for the snapshots: [0] plain, [1] textured, [2] textured
+  // and masked (alpha cutoff), each with its uniforms' locations.
+  struct ShadeProgram {
+    std::array<GLuint, 3> prog{};
+    std::array<GLint, 3> color{-1, -1, -1}, cutoff{-1, -1, -1}, viewproj{-1, -1, -1};
+    static std::size_t variant(const Material& m) { return m.alpha_mask ? 2 : m.texture >= 0 ? 1 : 0; }
+  } shade_geometry, shade_snapshot;
+  GLuint prog_clear = 0;
   // Multisampled snapshots (ImpostorConfig::snapshot_samples > 1): a scratch page, resolved.
   GLuint prog_resolve = 0, scratch_color = 0, scratch_depth = 0, scratch_fbo = 0;
   // Quads fitted to the coverage: a rectangle (vec4) per smallest-window slot of the atlas.
@@ -649,7 +667,6 @@ struct Renderer::Impl {
     if (on) glQueryCounter(stamps[k], GL_TIMESTAMP);
   }
   int snapshot_samples = 1;
-  GLint loc_geometry_viewproj = -1;
   GLuint atlas = 0, atlas_depth = 0, atlas_fbo = 0;
   bool layered = false;  // one snapshot pass for all pages (depth is then a texture array too)
   std::vector<std::array<GLuint, 2>> lod_runs;  // per LOD: (count, first) in snapshot_scratch
@@ -667,9 +684,6 @@ struct Renderer::Impl {
   std::vector<int> scratch_lod, scratch_part;  // per snapshot_scratch entry
   glm::vec3 light = glm::normalize(glm::vec3(0.4f, 0.8f, 0.6f));
 
-  struct ShadeLocations {
-    GLint color = -1, cutoff = -1;
-  } shade_geometry, shade_snapshot;
   struct BillboardProgram {
     GLuint prog = 0;
     GLint viewproj = -1, eye = -1, up = -1, samples = -1, sample_pos = -1, depth_pass = -1;
@@ -682,16 +696,18 @@ struct Renderer::Impl {
   // the location is -1 and the call does nothing).
   void upload_light() {
     auto upload = [&](GLuint p) { glProgramUniform3fv(p, glGetUniformLocation(p, "u_light"), 1, glm::value_ptr(light)); };
-    upload(prog_geometry);
-    upload(prog_snapshot);
+    for (const ShadeProgram* sp : {&shade_geometry, &shade_snapshot})
+      for (GLuint p : sp->prog) upload(p);
     for (const BillboardProgram& b : bb) upload(b.prog);
   }
 
-  void set_material(GLuint prog, const Material& m) {
-    const ShadeLocations& l = prog == prog_geometry ? shade_geometry : shade_snapshot;
-    glProgramUniform4fv(prog, l.color, 1, glm::value_ptr(m.base_color));
-    glProgramUniform1f(prog, l.cutoff, m.alpha_mask ? m.alpha_cutoff : -1.0f);
-    glBindTextureUnit(1, m.texture >= 0 ? textures[m.texture] : white);
+  // Uses the material's variant of `sp` and gives it the material.
+  void set_material(const ShadeProgram& sp, const Material& m) {
+    const std::size_t v = ShadeProgram::variant(m);
+    glUseProgram(sp.prog[v]);
+    glProgramUniform4fv(sp.prog[v], sp.color[v], 1, glm::value_ptr(m.base_color));
+    glProgramUniform1f(sp.prog[v], sp.cutoff[v], m.alpha_cutoff);
+    if (v > 0) glBindTextureUnit(1, m.texture >= 0 ? textures[m.texture] : white);
   }
 
   // Clears the rects of snapshot_scratch[first, first + count) and draws those snapshots into
@@ -703,13 +719,12 @@ struct Renderer::Impl {
     glDepthFunc(GL_ALWAYS);
     glDrawArraysInstancedBaseInstance(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(count), static_cast<GLuint>(first));
     glDepthFunc(GL_LESS);
-    glUseProgram(prog_snapshot);
     for (std::size_t b = first, end = first + count; b < end;) {
       std::size_t e = b;
       while (e < end && scratch_lod[e] == scratch_lod[b] && scratch_part[e] == scratch_part[b]) ++e;
       if (scratch_part[b] < 0) {
         glBindVertexArray(lods[scratch_lod[b]].vao_snapshot);
-        draw_lod(prog_snapshot, scratch_lod[b], static_cast<GLsizei>(e - b), static_cast<GLuint>(b));
+        draw_lod(shade_snapshot, scratch_lod[b], static_cast<GLsizei>(e - b), static_cast<GLuint>(b));
       } else {
         glBindVertexArray(lods[scratch_lod[b]].vao_part_snapshot);
         draw_part(scratch_lod[b], scratch_part[b], static_cast<GLsizei>(e - b), static_cast<GLuint>(b));
@@ -725,7 +740,7 @@ struct Renderer::Impl {
     for (std::size_t k = 0; k < ml.primitives.size(); ++k) {
       const PartIndices::Range& r = pi.ranges[k * parts + part];
       if (r.count == 0) continue;
-      set_material(prog_snapshot, model->materials[ml.primitives[k].material]);
+      set_material(shade_snapshot, model->materials[ml.primitives[k].material]);
       glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(r.count), GL_UNSIGNED_INT,
                                           reinterpret_cast<const void*>(static_cast<std::uintptr_t>(r.first) * 4), count,
                                           base_instance);
@@ -735,10 +750,10 @@ struct Renderer::Impl {
   void take_snapshots(const FramePlan& plan, bool time_stages);
   void take_snapshot_passes(const FramePlan& plan);  // the draws; sets fits_due
 
-  void draw_lod(GLuint prog, int lod, GLsizei count, GLuint base_instance) {
+  void draw_lod(const ShadeProgram& sp, int lod, GLsizei count, GLuint base_instance) {
     const MeshLod& ml = model->lods[lod];
     for (const Primitive& p : ml.primitives) {
-      set_material(prog, model->materials[p.material]);
+      set_material(sp, model->materials[p.material]);
       glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(p.index_count), GL_UNSIGNED_INT,
                                           reinterpret_cast<const void*>(static_cast<std::uintptr_t>(p.first_index) * 4),
                                           count, base_instance);
@@ -849,9 +864,22 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   d.config = config;
   while (glGetError() != GL_NO_ERROR) {
   }
-  auto pg = program(std::string(kCommon) + kGeometryVs, kShadeFs, "geometry shader");
-  if (!pg) return pg.error();
-  d.prog_geometry = *pg;
+  // kShadeFs's three variants (Impl::ShadeProgram) of one program.
+  auto shade_program = [&model](Impl::ShadeProgram& sp, const std::string& vs, const std::string& fs, const char* what) -> Status {
+    const std::string variants[3] = {fs, with_define(fs, "BB_TEXTURED"), with_define(with_define(fs, "BB_TEXTURED"), "BB_MASKED")};
+    for (std::size_t v = 0; v < 3; ++v) {
+      auto p = program(vs, variants[v], what);
+      if (!p) return p.error();
+      sp.prog[v] = *p;
+      sp.color[v] = glGetUniformLocation(*p, "u_color");
+      sp.cutoff[v] = glGetUniformLocation(*p, "u_cutoff");
+      sp.viewproj[v] = glGetUniformLocation(*p, "u_viewproj");
+      glProgramUniform1i(*p, glGetUniformLocation(*p, "u_palette_size"), static_cast<GLint>(model.palette.size()));
+    }
+    return Ok{};
+  };
+  if (Status st = shade_program(d.shade_geometry, std::string(kCommon) + kGeometryVs, kShadeFs, "geometry shader"); !st)
+    return st.error();
   d.layered = has_gl_extension("GL_ARB_shader_viewport_layer_array") && !std::getenv("BB_NO_LAYERED_SNAPSHOTS");
   d.snapshot_samples = std::clamp(config.snapshot_samples, 1, 16);
   // Relit snapshots and depth-corrected cards write more targets beside the atlas: layered
@@ -865,9 +893,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     for (std::string* src : {&svs, &sfs}) *src = with_define(*src, "BB_NORMALS");
   if (d.parallax)  // and of the surface's plane offsets
     for (std::string* src : {&svs, &sfs}) *src = with_define(*src, "BB_OFFSET");
-  auto ps = program(svs, sfs, "snapshot shader");
-  if (!ps) return ps.error();
-  d.prog_snapshot = *ps;
+  if (Status st = shade_program(d.shade_snapshot, svs, sfs, "snapshot shader"); !st) return st.error();
   auto pc = program(d.layered ? layered(kClearVs) : std::string(kClearVs), kClearFs, "window clear shader");
   if (!pc) return pc.error();
   d.prog_clear = *pc;
@@ -913,13 +939,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
                                             glGetUniformLocation(prog, "u_sample_pos"),
                                             glGetUniformLocation(prog, "u_depth_pass")};
   }
-  const GLint psize = static_cast<GLint>(model.palette.size());
-  glProgramUniform1i(d.prog_geometry, glGetUniformLocation(d.prog_geometry, "u_palette_size"), psize);
-  glProgramUniform1i(d.prog_snapshot, glGetUniformLocation(d.prog_snapshot, "u_palette_size"), psize);
   d.upload_light();
-  d.loc_geometry_viewproj = glGetUniformLocation(d.prog_geometry, "u_viewproj");
-  d.shade_geometry = {glGetUniformLocation(d.prog_geometry, "u_color"), glGetUniformLocation(d.prog_geometry, "u_cutoff")};
-  d.shade_snapshot = {glGetUniformLocation(d.prog_snapshot, "u_color"), glGetUniformLocation(d.prog_snapshot, "u_cutoff")};
 
   // Baked clips as a texture buffer.
   const auto rows = model.baked_palette();
@@ -1120,7 +1140,9 @@ Renderer::~Renderer() {
     glDeleteRenderbuffers(1, &d.scratch_depth);
     glDeleteProgram(d.prog_resolve);
   }
-  for (GLuint p : {d.prog_geometry, d.prog_snapshot, d.prog_clear}) glDeleteProgram(p);
+  for (const Impl::ShadeProgram* sp : {&d.shade_geometry, &d.shade_snapshot})
+    for (GLuint p : sp->prog) glDeleteProgram(p);
+  glDeleteProgram(d.prog_clear);
   for (const Impl::BillboardProgram& b : d.bb) glDeleteProgram(b.prog);
 }
 
@@ -1161,14 +1183,14 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
     for (const auto& l : plan.geometry) d.instance_scratch.insert(d.instance_scratch.end(), l.begin(), l.end());
     if (!d.instance_scratch.empty()) {
       d.instances.upload(d.instance_scratch.data(), d.instance_scratch.size() * sizeof(InstanceGpu));
-      glUseProgram(d.prog_geometry);
-      glProgramUniformMatrix4fv(d.prog_geometry, d.loc_geometry_viewproj, 1, GL_FALSE, glm::value_ptr(viewproj));
+      for (std::size_t v = 0; v < 3; ++v)
+        glProgramUniformMatrix4fv(d.shade_geometry.prog[v], d.shade_geometry.viewproj[v], 1, GL_FALSE, glm::value_ptr(viewproj));
       GLuint base = 0;
       for (std::size_t lod = 0; lod < plan.geometry.size() && lod < d.lods.size(); ++lod) {
         const GLsizei count = static_cast<GLsizei>(plan.geometry[lod].size());
         if (count == 0) continue;
         glBindVertexArray(d.lods[lod].vao_geometry);
-        d.draw_lod(d.prog_geometry, static_cast<int>(lod), count, base);
+        d.draw_lod(d.shade_geometry, static_cast<int>(lod), count, base);
         base += static_cast<GLuint>(count);
       }
     }

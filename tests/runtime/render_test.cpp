@@ -716,5 +716,89 @@ TEST(CrowdRender, DepthCorrectedCardsFollowTheParallax) {
   EXPECT_GT(ordered, corrected);  // 22.70 -> 22.85 dB
 }
 
+
+// The three kinds of material, each drawn by its own shader variant: plain (the flat colour),
+// textured (the texture's colour, its alpha ignored) and masked (texels below the cutoff
+// discarded), as geometry and as impostors. The texture is 4x1: two blue texels of alpha 0, then
+// two red opaque ones; u runs from 0.125 to 0.875 across the square, so the mask keeps half of it.
+TEST(CrowdRender, PlainTexturedAndMaskedMaterials) {
+  REQUIRE_GL();
+  struct Kind {
+    const char* name;
+    int texture;
+    bool mask;
+  };
+  const Kind kinds[] = {{"plain", -1, false}, {"textured", 0, false}, {"masked", 0, true}};
+  struct Counts {
+    int covered = 0, red = 0, blue = 0, grey = 0;
+  };
+  std::map<std::string, Counts> seen;  // "kind geometry" / "kind impostor"
+  for (const Kind& k : kinds) {
+    Model m = square_model();
+    for (Vertex& v : m.lods[0].vertices) {
+      // Undo the 30-degree turn of square_model to find the corner's x.
+      const float c = std::cos(glm::radians(30.0f)), s = std::sin(glm::radians(30.0f));
+      const float x = c * v.position.x + s * (v.position.y - 1.0f);
+      v.uv = {x < 0.0f ? 0.125f : 0.875f, 0.5f};
+    }
+    Texture t;
+    t.width = 4;
+    t.height = 1;
+    t.rgba = {0, 0, 255, 0, 0, 0, 255, 0, 255, 0, 0, 255, 255, 0, 0, 255};
+    m.textures = {t};
+    m.materials[0].texture = k.texture;
+    m.materials[0].alpha_mask = k.mask;
+    m.materials[0].alpha_cutoff = 0.5f;
+    Crowd crowd(m);
+    crowd.add(Character{});
+    ImpostorConfig cfg;
+    cfg.cache.posture_threshold = 0.0f;
+    cfg.cache.view_threshold_deg = 0.0f;
+    FramePlanner planner(m, cfg);
+    auto renderer = Renderer::create(m, cfg);
+    ASSERT_TRUE(renderer.ok()) << renderer.error().message();
+    auto target = OffscreenTarget::create(128, 128, 4);
+    ASSERT_TRUE(target.ok());
+    SceneCamera cam;
+    cam.width = cam.height = 128;
+    cam.target = m.ta;
+    cam.eye = m.ta + glm::vec3(0, 0, cam.pixels_per_metre(1.0f) / 60.0f);
+    for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) {
+      (*target)->bind(true);
+      (*renderer)->draw(planner.plan(crowd, cam, 0.0f, mode));
+      const auto px = (*target)->read_rgba();
+      Counts n;
+      for (std::size_t i = 0; i < px.size(); i += 4) {
+        if (px[i + 3] < 255) continue;  // opaque pixels only: the edges blend with nothing
+        ++n.covered;
+        const int r = px[i], g = px[i + 1], b = px[i + 2];
+        n.red += r > 100 && g < 10 && b < 10;
+        n.blue += b > 100 && r < 10 && g < 10;
+        n.grey += r == g && g == b && r > 100;
+      }
+      const std::string key = std::string(k.name) + (mode == RenderMode::kGeometry ? " geometry" : " impostor");
+      std::printf("%s: %d opaque pixels, %d red, %d blue, %d grey\n", key.c_str(), n.covered, n.red, n.blue, n.grey);
+      seen[key] = n;
+    }
+  }
+  for (const char* path : {" geometry", " impostor"}) {
+    const Counts& plain = seen[std::string("plain") + path];
+    const Counts& textured = seen[std::string("textured") + path];
+    const Counts& masked = seen[std::string("masked") + path];
+    EXPECT_GT(plain.covered, 2000) << path;
+    EXPECT_EQ(plain.grey, plain.covered) << path;  // the flat colour, no texture
+    // Textured: the whole square, blue and red in equal parts (measured 35 % each) with the
+    // filtered band between them (a third of the square).
+    EXPECT_NEAR(textured.covered, plain.covered, plain.covered / 50) << path;
+    EXPECT_EQ(textured.red, textured.blue) << path;
+    EXPECT_GT(textured.red, textured.covered * 3 / 10) << path;
+    // Masked: the red half only (its pure red as in the textured square, the rest the band's
+    // half above the cutoff).
+    EXPECT_NEAR(masked.covered, plain.covered / 2, plain.covered / 10) << path;
+    EXPECT_EQ(masked.blue, 0) << path;
+    EXPECT_EQ(masked.red, textured.red) << path;
+  }
+}
+
 }  // namespace
 }  // namespace bb::runtime
