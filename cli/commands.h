@@ -39,8 +39,18 @@ inline int run_command_line(CLI::App& app, int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    int rc = app.exit(e, std::cout, std::cerr);
-    return e.get_exit_code() == 0 ? 0 : (rc == 0 ? 2 : rc);
+    if (e.get_exit_code() == 0) return app.exit(e, std::cout, std::cerr);  // --help
+    // Like the commands' own errors: the program and the command first, then the reason.
+    std::string where = "bodybuilder";
+    for (const CLI::App* sub : app.get_subcommands()) where += " " + sub->get_name();
+    std::string reason = e.what();
+    if (app.get_subcommands().empty() && argc > 1 && argv[1][0] != '-') {
+      reason = std::string("unknown command \"") + argv[1] + "\" (commands:";
+      for (const CLI::App* sub : app.get_subcommands({})) reason += " " + sub->get_name();
+      reason += ")";
+    }
+    std::cerr << where << ": " << reason << "\nRun with --help for more information.\n";
+    return e.get_exit_code();
   }
   return status;
 }

@@ -2,6 +2,7 @@
 #include "flow.h"
 
 #include <algorithm>
+#include <charconv>
 #include <cctype>
 #include <cmath>
 #include <cstdio>
@@ -213,6 +214,20 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (a.impostor_target != "auto" && a.impostor_target != "scene")
     return fail("--impostor-target: expected auto or scene (got \"" + a.impostor_target + "\")");
   s.impostor_target_samples = a.impostor_target == "scene" ? a.msaa : 0;
+  // The crowd sizes of --scaling, checked before anything runs.
+  std::vector<int> scaling_counts;
+  {
+    std::stringstream ls(a.scaling_list);
+    for (std::string item; std::getline(ls, item, ',');) {
+      int n = 0;
+      const auto [end, ec] = std::from_chars(item.data(), item.data() + item.size(), n);
+      if (ec != std::errc() || end != item.data() + item.size() || n < 1 || n > 100000)
+        return fail("--scaling-humans: expected crowd sizes from 1 to 100000, separated by commas (got \"" + item +
+                    "\" in \"" + a.scaling_list + "\")");
+      scaling_counts.push_back(n);
+    }
+    if (scaling_counts.empty()) return fail("--scaling-humans: expected at least one crowd size");
+  }
   s.texels_per_pixel = a.texels_per_pixel;
   if (a.main_files) s.keep_frames = {0, s.frames / 2};
 
@@ -321,9 +336,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
 
   // Scaling: both paths from 20 to 10,000 humans.
   if (a.scaling) {
-    std::vector<int> counts;
-    std::stringstream ls(a.scaling_list);
-    for (std::string item; std::getline(ls, item, ',');) counts.push_back(std::atoi(item.c_str()));
+    const std::vector<int>& counts = scaling_counts;
     ordered_json scaling = ordered_json::array();
     std::ostringstream csv;
     // With screen-size weighting on (the test bed's default), each size is also run without it,
@@ -335,7 +348,6 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     Series g{"geometry (ms/frame)", {}, {}, 0xd62728}, im{"impostors (ms/frame)", {}, {}, 0x1f77b4},
         iu{"impostors, no screen weighting (ms/frame)", {}, {}, 0x2ca02c};
     for (int n : counts) {
-      if (n <= 0) return fail("--scaling-humans: expected positive counts");
       FlowSettings ss = s;
       ss.humans = n;
       ss.frames = a.scaling_frames;
@@ -480,7 +492,9 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--sweep", a->sweep, "Sweep the posture threshold (view off) or the view threshold (posture off)");
   cmd->add_flag("--scaling", a->scaling, "Also measure both paths from 20 to 10,000 humans");
   cmd->add_option("--scaling-humans", a->scaling_list, "Crowd sizes of --scaling")->capture_default_str();
-  cmd->add_option("--scaling-frames", a->scaling_frames, "Frames per crowd size of --scaling")->capture_default_str();
+  cmd->add_option("--scaling-frames", a->scaling_frames, "Frames per crowd size of --scaling")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
   cmd->add_option("-o,--output", a->out, "Output folder")->capture_default_str();
   cmd->add_flag("--json", a->json, "Print the report as one JSON object on stdout");
   cmd->callback([=] { *status = run_flow_command(*a, nullptr); });

@@ -245,11 +245,20 @@ TEST(FlowCli, BadFlagsAreErrors) {
                            "flow --refresh-budget -1", "flow --limb-cards round", "flow --snapshot-grid texels",
                            "flow --snapshot-samples 3", "flow --quad-fit hull", "flow --planner-threads -1",
                            "flow --card-depth maybe", "flow --card-lead maybe", "flow --screen-weighting 0",
-                           "flow --screen-weighting tall", "flow --snapshot-scale half", "flow --impostor-target msaa"}) {
+                           "flow --screen-weighting tall", "flow --snapshot-scale half", "flow --impostor-target msaa",
+                           "flow --scaling-frames 0", "flow --scaling --scaling-humans 20,0"}) {
     Out o = run(args);
     EXPECT_NE(o.status, 0) << args;
     EXPECT_NE(o.text.find("flow"), std::string::npos) << args << ": " << o.text;
   }
+  // A bad crowd size is named before anything runs (no main run, no output folder).
+  const fs::path d = fs::temp_directory_path() / "bb_flow_bad_scaling";
+  fs::remove_all(d);
+  Out o = run("flow --scaling --scaling-humans 20,12x -o " + d.string());
+  EXPECT_NE(o.status, 0);
+  EXPECT_NE(o.text.find("--scaling-humans"), std::string::npos) << o.text;
+  EXPECT_NE(o.text.find("\"12x\""), std::string::npos) << o.text;
+  EXPECT_FALSE(fs::exists(d / "flow.json"));
 }
 
 TEST(DemoCli, WritesTheLodSetFramesChartsAndReport) {

@@ -88,6 +88,11 @@ TEST(CliInspectBody, WrongFlagIsAnError) {
   CmdResult r = run("inspect --no-such-flag");
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.text.find("--no-such-flag"), std::string::npos) << r.text;
+  EXPECT_NE(r.text.find("bodybuilder inspect:"), std::string::npos) << r.text;  // the command named
+  CmdResult c = run("no-such-command");
+  EXPECT_NE(c.status, 0);
+  EXPECT_NE(c.text.find("unknown command \"no-such-command\""), std::string::npos) << c.text;
+  EXPECT_NE(c.text.find("flow"), std::string::npos) << c.text;  // the commands listed
   CmdResult v = run("--version");
   EXPECT_EQ(v.status, 0);
   EXPECT_NE(v.text.find("bodybuilder"), std::string::npos);
