@@ -168,7 +168,7 @@ int run_demo(const std::string& dir, int frames, bool full) {
   std::printf("built %s\n", glb->c_str());
   // 3. The flow test bed: both paths, then the two sweeps and the crowd sizes.
   FlowArgs a;
-  a.model = *glb;
+  // The flow's default crowd: this body and kDefaultVariants seeded variants (built beside it).
   a.out = dir;
   a.frames = frames;
   a.quiet = true;
@@ -401,7 +401,7 @@ int run_demo(const std::string& dir, int frames, bool full) {
   }
   // The same runs on their own, for anyone checking these numbers against `flow --json`.
   {
-    const std::string base = "bodybuilder flow --model " + *glb + " --json -o out/check";
+    const std::string base = "bodybuilder flow --json -o out/check";
     const int half = std::max(10, frames / 2);
     md << "\n## Check it\n\nEach table comes from one `bodybuilder flow` run; the same runs on their own (timings "
        << "vary from run to run: up to ~15 % on a busy 2-core machine):\n\n"

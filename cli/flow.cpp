@@ -21,9 +21,6 @@
 
 namespace bb::cli {
 
-// The default body's LOD set, built into `dir` (flow_model.cpp).
-Result<std::string> default_flow_model(const std::string& dir);
-
 namespace {
 
 namespace fs = std::filesystem;
@@ -155,6 +152,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (!a.sweep.empty() && a.sweep != "posture" && a.sweep != "view")
     return fail("--sweep: expected posture or view (got \"" + a.sweep + "\")");
   if (!a.sweep.empty() && a.mode != "both") return fail("--sweep needs --mode both");
+  if (!a.models.empty() && a.variants >= 0) return fail("--variants: only for the built-in body (without --model)");
   if (a.impostor_edges != "samples" && a.impostor_edges != "coverage" && a.impostor_edges != "test" &&
       a.impostor_edges != "blend" && a.impostor_edges != "auto")
     return fail("--impostor-edges: expected auto, samples, coverage, test or blend (got \"" + a.impostor_edges + "\")");
@@ -234,25 +232,34 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   auto ctx = runtime::HeadlessContext::create();
   if (!ctx) return fail(ctx.error().message());
   std::string device = (*ctx)->description();
-  std::string model_path = a.model;
-  if (model_path.empty()) {
-    auto p = default_flow_model(a.out);
+  std::vector<std::string> model_paths = a.models;
+  if (model_paths.empty()) {
+    auto p = default_flow_models(a.out, a.variants < 0 ? kDefaultVariants : a.variants);
     if (!p) return fail(p.error().message());
-    model_path = *p;
+    model_paths = *p;
   }
-  auto model = runtime::load_model(model_path);
-  if (!model) return fail(model.error().message());
-  if (!a.json) std::fprintf(stderr, "flow: %s, %d humans, %d frames at %dx%d on %s\n", model_path.c_str(), s.humans,
+  std::vector<runtime::Model> loaded;
+  for (const std::string& path : model_paths) {
+    auto m = runtime::load_model(path);
+    if (!m) return fail(m.error().message());
+    loaded.push_back(std::move(*m));
+  }
+  std::vector<const runtime::Model*> model;  // the crowd's models, human i of model[i % size]
+  for (const runtime::Model& m : loaded) model.push_back(&m);
+  std::string model_list;
+  for (const std::string& path : model_paths) model_list += (model_list.empty() ? "" : ", ") + path;
+  if (!a.json) std::fprintf(stderr, "flow: %s, %d humans, %d frames at %dx%d on %s\n", model_list.c_str(), s.humans,
                             s.frames, s.width, s.height, device.c_str());
 
   ordered_json report;
-  auto result = run_flow(*model, s, device);
+  auto result = run_flow(model, s, device);
   if (!result) return fail(result.error().message());
   if (s.geometry && result->geometry_target_samples != s.msaa)
     std::fprintf(stderr, "flow: --msaa %d: this device gives %d samples per pixel, measured with those\n", s.msaa,
                  result->geometry_target_samples);
   report = to_json(*result, s);
-  report["model"] = model_path;
+  report["model"] = model_paths.front();
+  if (model_paths.size() > 1) report["models"] = model_paths;
   report["device"] = device;
   std::vector<std::string> written;
   // Sample frames of an earlier run into the same folder (another --frames keeps other frames)
@@ -293,7 +300,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     for (float v : values) {
       if (posture) { ss.posture_test = true; ss.posture_threshold = v; ss.view_test = false; }
       else { ss.view_test = true; ss.view_deg = v; ss.posture_test = false; }
-      auto r = run_flow(*model, ss, device);
+      auto r = run_flow(model, ss, device);
       if (!r) return fail(r.error().message());
       ordered_json j = to_json(*r, ss);
       j["threshold"] = std::round(static_cast<double>(v) * 1000.0) / 1000.0;
@@ -353,7 +360,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
       ss.frames = a.scaling_frames;
       ss.keep_frames.clear();
       ss.quality_every = 0;
-      auto r = run_flow(*model, ss, device);
+      auto r = run_flow(model, ss, device);
       if (!r) return fail(r.error().message());
       ordered_json j = to_json(*r, ss);
       csv << n << "," << r->geometry_ms << "," << r->impostor_ms << "," << r->ratio << ","
@@ -368,7 +375,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
       if (unweighted) {
         FlowSettings su = ss;
         su.screen_weighting_px = 0.0f;
-        auto u = run_flow(*model, su, device);
+        auto u = run_flow(model, su, device);
         if (!u) return fail(u.error().message());
         j["unweighted"] = {{"geometry_ms", u->geometry_ms},
                            {"impostor_ms", u->impostor_ms},
@@ -427,7 +434,12 @@ namespace {
 void add_flow_command(CLI::App& app, int* status) {
   auto* cmd = app.add_subcommand("flow", "The paper's human flow test bed: humans walking in circles, geometry vs impostors");
   auto a = std::make_shared<FlowArgs>();
-  cmd->add_option("--model", a->model, "Skinned glTF/GLB to use (default: the built-in body's LOD set)");
+  cmd->add_option("--model", a->models,
+                  "Skinned glTF/GLB to use; repeat it for a crowd of several models, human i of the (i mod count)-th "
+                  "(default: the built-in body's LOD set and --variants seeded variants of it)");
+  cmd->add_option("--variants", a->variants,
+                  "Without --model: seeded variants of the built-in body beside it in the crowd (default 3)")
+      ->check(CLI::Range(0, 16));
   cmd->add_option("--humans", a->humans, "Number of humans")->capture_default_str()->check(CLI::Range(1, 100000));
   cmd->add_option("--frames", a->frames, "Measured frames")->capture_default_str()->check(CLI::Range(1, 100000));
   cmd->add_option("--size", a->size, "Scene window WxH")->capture_default_str();
@@ -487,7 +499,8 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_flag("--gpu-stages", a->gpu_stages,
                 "Also time the renderer's stages on the GPU (snapshots, coverage, geometry, impostors; gpu_ms_stages in the report)");
   cmd->add_option("--refresh-budget", a->refresh_budget,
-                  "At most N impostors refreshed per frame, the stalest first (0: no limit; the paper's future work)")
+                  "At most N impostors refreshed per frame, the stalest first (0: no limit; the paper's future work; "
+                  "with several models, split between them, at least one each)")
       ->capture_default_str();
   cmd->add_option("--sweep", a->sweep, "Sweep the posture threshold (view off) or the view threshold (posture off)");
   cmd->add_flag("--scaling", a->scaling, "Also measure both paths from 20 to 10,000 humans");

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -121,10 +122,19 @@ struct FlowResult {
 
 // Runs the test bed on `model` (must have a current GL context). `device` names the GL renderer.
 Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& settings, const std::string& device);
+// The same with a crowd of several models: human i is of models[i % models.size()] (each model
+// with its own renderer and atlas, drawn into the same frame); the scene is scaled to the largest.
+// The figures are the crowd's (refresh_fraction: refreshed over drawn impostors or cards, summed).
+Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const FlowSettings& settings,
+                            const std::string& device);
 
 // What `bodybuilder flow` was asked (the CLI's flags).
 struct FlowArgs {
-  std::string model, out = "out/flow", size = "1280x1024", mode = "both", posture = "0.4", view = "8", sweep;
+  // --model, repeatable (a crowd of several models); none: the built-in body and `variants`
+  // seeded variants of it (-1: the default, kDefaultVariants).
+  std::vector<std::string> models;
+  int variants = -1;
+  std::string out = "out/flow", size = "1280x1024", mode = "both", posture = "0.4", view = "8", sweep;
   int humans = 20, frames = 120;
   bool json = false, scaling = false, distance_weighting = false;
   std::string screen_weighting = "32";
@@ -153,6 +163,13 @@ struct FlowArgs {
   std::string scaling_list = "20,100,500,1000,2000,5000,10000";
   int scaling_frames = 10;
 };
+
+// Seeded variants of the built-in body beside it in the flow test bed's default crowd.
+constexpr int kDefaultVariants = 3;
+// The built-in body's LOD set and `variants` seeded variants of it (make_variant, seeds 1..N),
+// built into DIR/default.glb, DIR/default_v1.glb, ... (each reused when it is already there and
+// newer than the program). flow_model.cpp; bench_flow has none.
+Result<std::vector<std::string>> default_flow_models(const std::string& dir, int variants);
 
 // Runs `bodybuilder flow` with these arguments: writes its files under a.out and, when given,
 // its JSON report into `report`. Returns the exit status.

@@ -3,6 +3,10 @@
 #include <cmath>
 #include <cctype>
 #include <limits>
+#include <memory>
+#include <span>
+#include <utility>
+#include <vector>
 
 #include "bb/runtime/renderer.h"
 #include "flow.h"
@@ -59,7 +63,16 @@ FlowResult::Spread spread(std::vector<double> t) {
 }  // namespace
 
 Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, const std::string& device) {
+  const runtime::Model* one[1] = {&model};
+  return run_flow(std::span<const runtime::Model* const>(one), s, device);
+}
+
+Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const FlowSettings& s,
+                            const std::string& device) {
   using namespace runtime;
+  if (models.empty()) return Error{"", "flow", "no model"};
+  const int nm = static_cast<int>(models.size());
+  const Model& model = *models[0];
   FlowResult out;
   out.humans = s.humans;
   out.frames = s.frames;
@@ -97,11 +110,23 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
                        : s.impostor_edges == "test"    ? ImpostorEdges::kAlphaTest
                        : s.impostor_edges == "samples" ? ImpostorEdges::kSamples
                                                        : ImpostorEdges::kBlend;
-  // Enough atlas for the crowd: windows of 256 px, 16 per 1024 page.
-  config.max_pages = std::clamp(s.humans / 8 + 4, 8, 64);
-  auto renderer = Renderer::create(model, config);
-  if (!renderer) return renderer.error();
-  FramePlanner planner(model, config);
+  // One renderer, planner and crowd per model; human i is of model i % models.size().
+  std::vector<std::unique_ptr<Renderer>> renderers;
+  std::vector<std::unique_ptr<FramePlanner>> planners;
+  std::vector<Crowd> crowds;
+  for (int m = 0; m < nm; ++m) {
+    // Enough atlas for the model's share of the crowd: windows of 256 px, 16 per 1024 page.
+    const int humans_m = (s.humans + nm - 1 - m) / nm;
+    config.max_pages = std::clamp(humans_m / 8 + 4, 8, 64);
+    // The refresh budget is the crowd's: each model's planner gets its share (at least one).
+    if (s.refresh_budget > 0) config.cache.refresh_budget = std::max(1, s.refresh_budget / nm + (m < s.refresh_budget % nm ? 1 : 0));
+    auto r = Renderer::create(*models[m], config);
+    if (!r) return r.error();
+    renderers.push_back(std::move(*r));
+    planners.push_back(std::make_unique<FramePlanner>(*models[m], config));
+    crowds.emplace_back(*models[m]);
+    crowds.back().reserve(static_cast<std::size_t>(humans_m));
+  }
   auto target_g = OffscreenTarget::create(s.width, s.height, s.msaa);
   if (!target_g) return target_g.error();
   // Impostor frames hold impostors only: blended edges need no multisampled target.
@@ -114,16 +139,28 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
 
   // The crowd: concentric circles, a few humans per circle, speeds 0.6 .. 1.8 m/s, alternate
   // directions. Circles are spaced so that neighbours do not collide.
-  const int clip = model.clips.empty() ? 0 : choose_clip(model, s.clip);
-  float clip_speed = s.clip_speed_mps > 0 ? s.clip_speed_mps
-                                          : (model.clips.empty() ? 0.0f : speed_from_name(model.clips[clip].name));
-  float size = std::max(model.radius * 2.0f, 0.1f);     // the character's extent, metres
-  float model_height = std::max(model.bounds_max.y - model.bounds_min.y, 0.1f);
+  // Each model walks its own walk clip. A model whose height is not within a factor of 2 of the
+  // first model's (another unit: the Fox is in centimetres) is scaled to the first one's height;
+  // the others keep theirs (our body's variants differ in height on purpose). The scene is scaled
+  // to the largest character.
+  std::vector<int> clips(static_cast<std::size_t>(nm));
+  std::vector<float> clip_speeds(static_cast<std::size_t>(nm)), scales(static_cast<std::size_t>(nm), 1.0f);
+  float size = 0.1f, model_height = 0.1f;  // the characters' extent and height, scene units
+  const float first_height = std::max(model.bounds_max.y - model.bounds_min.y, 1e-6f);
+  for (int m = 0; m < nm; ++m) {
+    const Model& mm = *models[m];
+    clips[m] = mm.clips.empty() ? 0 : choose_clip(mm, s.clip);
+    clip_speeds[m] = s.clip_speed_mps > 0 ? s.clip_speed_mps
+                                          : (mm.clips.empty() ? 0.0f : speed_from_name(mm.clips[clips[m]].name));
+    const float h = std::max(mm.bounds_max.y - mm.bounds_min.y, 1e-6f);
+    if (h > 2.0f * first_height || h < 0.5f * first_height) scales[m] = first_height / h;
+    size = std::max(size, mm.radius * 2.0f * scales[m]);
+    model_height = std::max(model_height, h * scales[m]);
+  }
   int per_ring = std::max(4, static_cast<int>(std::ceil(std::sqrt(static_cast<float>(s.humans)))));
   int rings = (s.humans + per_ring - 1) / per_ring;
   std::vector<Walker> walkers;
-  Crowd crowd(model);
-  crowd.reserve(s.humans);
+  std::vector<std::pair<int, int>> slot;  // per human: (model, index in its crowd)
   float unit = model_height / 1.75f;  // scale the scene to the model: 1 "human metre"
   for (int i = 0; i < s.humans; ++i) {
     int ring = i % rings, k = i / rings;
@@ -134,11 +171,14 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
     w.omega = w.dir * w.speed / w.radius;
     w.theta0 = 6.2831853f * (k + 0.37f * ring) / per_ring;
     walkers.push_back(w);
+    const int m = i % nm;
     Character c;
-    c.clip = clip;
+    c.clip = clips[m];
     c.phase = 0.7f * i;
-    c.speed = s.hold_poses ? 0.0f : clip_speed > 0 ? w.speed / (clip_speed * unit) : 1.0f;
-    crowd.add(c);
+    c.scale = scales[m];
+    // The clip's speed (in the model's units) scales with the character.
+    c.speed = s.hold_poses ? 0.0f : clip_speeds[m] > 0 ? w.speed / (clip_speeds[m] * unit * scales[m]) : 1.0f;
+    slot.emplace_back(m, crowds[m].add(c));
   }
   float outer = walkers.empty() ? 2.0f : (2.0f + 1.6f * (rings - 1)) * unit + size;
   SceneCamera cam;
@@ -164,7 +204,7 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
     for (int i = 0; i < s.humans; ++i) {
       const Walker& w = walkers[i];
       float th = w.theta0 + w.omega * t;
-      Character& c = crowd[i];
+      Character& c = crowds[slot[i].first][slot[i].second];
       c.position = {w.radius * std::cos(th), 0, w.radius * std::sin(th)};
       // Heading along the circle: d/dt of the position.
       glm::vec2 v(-std::sin(th) * w.dir, std::cos(th) * w.dir);
@@ -178,14 +218,29 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
     bool keep = measured && std::find(s.keep_frames.begin(), s.keep_frames.end(), mf) != s.keep_frames.end();
     FlowFrameImages imgs;
     imgs.frame = mf;
-    // One path: plan and draw into its target, timed until the GPU has finished.
-    auto draw = [&](OffscreenTarget& target, RenderMode mode, double* ms) -> const FramePlan& {
+    // One path: plan and draw every model's crowd into its target, timed until the GPU has
+    // finished; the plans' statistics summed into `stats`.
+    std::vector<const FramePlan*> plans(static_cast<std::size_t>(nm));
+    auto draw = [&](OffscreenTarget& target, RenderMode mode, double* ms) -> FrameStats {
       target.bind(true);
       gpu_finish();
       auto t0 = Clock::now();
-      const FramePlan& plan = planner.plan(crowd, cam, t, mode);
+      for (int m = 0; m < nm; ++m) plans[m] = &planners[m]->plan(crowds[m], cam, t, mode);
       auto t1 = Clock::now();
-      (*renderer)->draw(plan, draw_options);
+      if (nm == 1 || draw_options.time_stages) {
+        for (int m = 0; m < nm; ++m) renderers[m]->draw(*plans[m], draw_options);
+      } else {
+        // Every model's snapshots first, then every model's characters: a snapshot pass between
+        // two models' quads would make the driver finish the frame's drawing so far (llvmpipe:
+        // it flushes on each change of framebuffer; flow test bed, our body and 3 variants, the
+        // impostor frame 2.35 -> 2.15 ms). With --gpu-stages each renderer draws once, so that
+        // its stage times are one draw's.
+        DrawOptions snap = draw_options, rest = draw_options;
+        snap.draw_geometry = snap.draw_impostors = false;
+        rest.take_snapshots = false;
+        for (int m = 0; m < nm; ++m) renderers[m]->draw(*plans[m], snap);
+        for (int m = 0; m < nm; ++m) renderers[m]->draw(*plans[m], rest);
+      }
       auto t2 = Clock::now();
       gpu_finish();
       auto t3 = Clock::now();
@@ -195,43 +250,65 @@ Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, 
         sp.plan += std::chrono::duration<double, std::milli>(t1 - t0).count();
         sp.submit += std::chrono::duration<double, std::milli>(t2 - t1).count();
         sp.finish += std::chrono::duration<double, std::milli>(t3 - t2).count();
-        const StageTimes g = (*renderer)->stage_times();  // after the timed frame
         StageTimes& acc = mode == RenderMode::kGeometry ? out.geometry_gpu : out.impostor_gpu;
-        acc.snapshots += g.snapshots;
-        acc.coverage += g.coverage;
-        acc.geometry += g.geometry;
-        acc.impostors += g.impostors;
-        acc.valid = g.valid;
+        for (const auto& r : renderers) {
+          const StageTimes g = r->stage_times();  // after the timed frame
+          acc.snapshots += g.snapshots;
+          acc.coverage += g.coverage;
+          acc.geometry += g.geometry;
+          acc.impostors += g.impostors;
+          acc.valid = g.valid;
+        }
       }
-      return plan;
+      FrameStats sum;
+      int refreshed = 0, refreshable = 0;  // cards or whole impostors, as refresh_fraction counts
+      float pixel_use = 0;
+      for (const FramePlan* p : plans) {
+        const FrameStats& st = p->stats;
+        sum.geometry_triangles += st.geometry_triangles;
+        sum.snapshot_triangles += st.snapshot_triangles;
+        sum.deferred_refreshes += st.deferred_refreshes;
+        sum.snapshots += st.snapshots;
+        sum.part_snapshots += st.part_snapshots;
+        sum.part_cards += st.part_cards;
+        sum.impostors += st.impostors;
+        sum.quad_texels += st.quad_texels;
+        sum.atlas_pages_used += st.atlas_pages_used;
+        pixel_use += st.atlas_pixel_use;
+        refreshed += st.part_cards > 0 ? st.part_snapshots : st.snapshots;
+        refreshable += st.part_cards > 0 ? st.part_cards : st.impostors;
+      }
+      sum.refresh_fraction = refreshable > 0 ? static_cast<float>(refreshed) / static_cast<float>(refreshable) : 0.0f;
+      sum.atlas_pixel_use = pixel_use / static_cast<float>(nm);
+      return sum;
     };
     double ms = 0;
     if (s.geometry) {
-      const FramePlan& plan = draw(**target_g, RenderMode::kGeometry, &ms);
+      const FrameStats st = draw(**target_g, RenderMode::kGeometry, &ms);
       if (measured) {
         g_ms += ms;
         g_times.push_back(ms);
-        tri_g += plan.stats.geometry_triangles;
+        tri_g += static_cast<double>(st.geometry_triangles);
       }
       if (compare || keep) imgs.geometry = (*target_g)->read_rgba();
     }
     if (s.impostor) {
-      const FramePlan& plan = draw(**target_i, RenderMode::kImpostor, &ms);
+      const FrameStats st = draw(**target_i, RenderMode::kImpostor, &ms);
       if (measured) {
         i_ms += ms;
         i_times.push_back(ms);
-        deferred += plan.stats.deferred_refreshes;
-        out.snapshots_max = std::max(out.snapshots_max, plan.stats.part_cards > 0 ? plan.stats.part_snapshots : plan.stats.snapshots);
-        refresh += plan.stats.refresh_fraction;
-        tri_s += plan.stats.snapshot_triangles;
-        quad_texels += plan.stats.quad_texels;
-        cards += plan.stats.part_cards;
-        atlas_use += plan.stats.atlas_pixel_use;
-        atlas_pages = std::max(atlas_pages, plan.stats.atlas_pages_used);
+        deferred += st.deferred_refreshes;
+        out.snapshots_max = std::max(out.snapshots_max, st.part_cards > 0 ? st.part_snapshots : st.snapshots);
+        refresh += st.refresh_fraction;
+        tri_s += static_cast<double>(st.snapshot_triangles);
+        quad_texels += st.quad_texels;
+        cards += st.part_cards;
+        atlas_use += st.atlas_pixel_use;
+        atlas_pages = std::max(atlas_pages, st.atlas_pages_used);
       }
       if (compare || keep) imgs.impostor = (*target_i)->read_rgba();
       if (compare) {  // after the timed frame: reads the fitted rectangles back
-        drawn_texels += (*renderer)->drawn_quad_texels(plan);
+        for (int m = 0; m < nm; ++m) drawn_texels += renderers[m]->drawn_quad_texels(*plans[m]);
         ++drawn_frames;
       }
     }

@@ -7,14 +7,15 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <vector>
 
 #include "commands.h"
 #include "flow.h"
 
 namespace bb::cli {
-// flow.cpp asks for the built-in model only when no --model is given; here one always is.
-Result<std::string> default_flow_model(const std::string&) {
-  return Error{"", "", "bench_flow needs a model file"};
+// flow.cpp asks for the built-in models only when no --model is given; here one always is.
+Result<std::vector<std::string>> default_flow_models(const std::string&, int) {
+  return Error{"", "", "bench_flow needs a model file (--model)"};
 }
 }  // namespace bb::cli
 
@@ -28,7 +29,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   bb::cli::FlowArgs a;
-  a.model = argv[1];
+  a.models = {argv[1]};
   a.out = argv[2];
   a.frames = argc > 3 ? std::atoi(argv[3]) : 60;
   std::string sizes = argc > 4 ? argv[4] : "20,100,500,1000,2000,5000,10000";
