@@ -268,7 +268,11 @@ int run_demo(const std::string& dir, int frames, bool full) {
   md << "# bodybuilder demo\n\n";
   md << "Device: " << main_run["device"].get<std::string>() << "\n\n";
   md << "## Human flow test bed (paper section 6)\n\n";
-  md << "20 humans walking in circles at different speeds, " << main_run["size"].get<std::string>() << ", "
+  const std::size_t bodies = main_run.contains("models") ? main_run["models"].size() : 1;
+  md << "20 humans walking in circles at different speeds";
+  if (bodies > 1)
+    md << " (the built-in body and " << bodies - 1 << " seeded variants of it: `default.glb`, `default_v1.glb`, ...)";
+  md << ", " << main_run["size"].get<std::string>() << ", "
      << main_run["frames"].get<int>() << " frames, posture threshold " << main_run["posture"].dump() << ", view threshold "
      << main_run["view_deg"].dump() << " degrees. Each frame is drawn by both paths; a frame's time runs until the GPU "
      << "has finished it.\n\n";
@@ -415,7 +419,8 @@ int run_demo(const std::string& dir, int frames, bool full) {
        << "- crowd sizes: `" << base << " --frames 2 --scaling --scaling-frames 3 --scaling-humans " << sc.scaling_list
        << "`\n\n";
   }
-  md << "\n## Where to look\n\n- `default.glb`: the built-in body's LOD set (open it in any glTF viewer)\n"
+  md << "\n## Where to look\n\n- `default.glb`: the built-in body's LOD set (open it in any glTF viewer); "
+     << "`default_v1.glb` ...: the seeded variants that walk beside it\n"
      << "- `default_body.png`: the implicit skin, ray-cast\n"
      << "- `lods.png`: every level of detail, finest first; `proxies.png`: the hands at level 0 (left) and the "
      << "lowest level's textured proxies (right)\n"
