@@ -219,7 +219,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
     FlowFrameImages imgs;
     imgs.frame = mf;
     // One path: plan and draw every model's crowd into its target, timed until the GPU has
-    // finished; the plans' statistics summed into `stats`.
+    // finished. Returns the plans' statistics summed over the models.
     std::vector<const FramePlan*> plans(static_cast<std::size_t>(nm));
     auto draw = [&](OffscreenTarget& target, RenderMode mode, double* ms) -> FrameStats {
       target.bind(true);
