@@ -25,7 +25,6 @@ namespace bb::cli {
 
 int run_inspect_body(const std::string& path, bool as_json, const std::string& preview_path,
                      const std::string& posture_name);  // inspect.cpp
-Result<std::string> default_flow_model(const std::string& dir);  // flow_model.cpp
 
 namespace {
 
@@ -159,13 +158,14 @@ int run_demo(const std::string& dir, int frames, bool full) {
   // 1. The body and its skin.
   std::string preview = (fs::path(dir) / "default_body.png").string();
   if (int st = run_inspect_body("default", false, preview, "bind"); st) return st;
-  // 2. The LOD set.
-  auto glb = default_flow_model(dir);
-  if (!glb) {
-    std::cerr << "bodybuilder demo: " << glb.error().message() << "\n";
+  // 2. The LOD sets of the flow's default crowd: the body and its variants (the flow reuses them).
+  auto glbs = default_flow_models(dir, kDefaultVariants);
+  if (!glbs) {
+    std::cerr << "bodybuilder demo: " << glbs.error().message() << "\n";
     return 1;
   }
-  std::printf("built %s\n", glb->c_str());
+  const std::string glb = glbs->front();
+  for (const std::string& p : *glbs) std::printf("built %s\n", p.c_str());
   // 3. The flow test bed: both paths, then the two sweeps and the crowd sizes.
   FlowArgs a;
   // The flow's default crowd: this body and kDefaultVariants seeded variants (built beside it).
@@ -240,7 +240,7 @@ int run_demo(const std::string& dir, int frames, bool full) {
   if (int st = run_flow_command(sc, &scaling); st) return st;
   // 4. Pictures of the LOD set (after the timed runs, so that those run in the same state as a
   // separate `bodybuilder flow`).
-  if (auto st = write_lod_pictures(*glb, dir); !st) {
+  if (auto st = write_lod_pictures(glb, dir); !st) {
     std::cerr << "bodybuilder demo: " << st.error().message() << "\n";
     return 1;
   }

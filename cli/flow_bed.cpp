@@ -93,7 +93,6 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   config.snapshot_lod_from_screen = s.snapshot_lod_from_screen;
   config.perspective_snapshots = s.perspective_snapshots;
   config.part_cards = s.part_cards;
-  config.cache.refresh_budget = s.refresh_budget;
   config.turn_limb_cards = s.turn_limb_cards;
   config.parallax_cards = s.parallax_cards;
   config.relight = s.relight;
@@ -119,7 +118,8 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
     const int humans_m = (s.humans + nm - 1 - m) / nm;
     config.max_pages = std::clamp(humans_m / 8 + 4, 8, 64);
     // The refresh budget is the crowd's: each model's planner gets its share (at least one).
-    if (s.refresh_budget > 0) config.cache.refresh_budget = std::max(1, s.refresh_budget / nm + (m < s.refresh_budget % nm ? 1 : 0));
+    config.cache.refresh_budget =
+        s.refresh_budget > 0 ? std::max(1, s.refresh_budget / nm + (m < s.refresh_budget % nm ? 1 : 0)) : 0;
     auto r = Renderer::create(*models[m], config);
     if (!r) return r.error();
     renderers.push_back(std::move(*r));

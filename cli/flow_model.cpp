@@ -33,8 +33,6 @@ Result<std::string> built_model(const std::string& dir, const modeler::Body& bod
 
 }  // namespace
 
-Result<std::string> default_flow_model(const std::string& dir) { return built_model(dir, modeler::default_body()); }
-
 Result<std::vector<std::string>> default_flow_models(const std::string& dir, int variants) {
   std::vector<std::string> paths;
   const modeler::Body base = modeler::default_body();
