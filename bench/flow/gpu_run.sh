@@ -3,7 +3,7 @@
 # the same flags as `bodybuilder flow`. Prepare here (see docs/results.md, "NVIDIA H100"):
 #   .gl/  the GL loader packages (libegl1 libglvnd0 libopengl0 libgl1 libglx0 ...), .deb files
 #   .gpu/bin/bench_flow, .gpu/lib/{libtinygltf.so.2d,libstb.so.0}, .gpu/models/{default,CesiumMan,Fox}.glb
-# and run `bash bench/flow/gpu_run.sh SET` with .gl and .gpu carried; results go to $OUT.
+# and run `bash bench/flow/gpu_run.sh SET...` with .gl and .gpu carried; results go to $OUT.
 set -uo pipefail
 if command -v nvidia-smi >/dev/null; then  # only there: the loaders go into /
   for f in .gl/*.deb; do dpkg -x "$f" /; done
@@ -18,10 +18,15 @@ mkdir -p "$OUT" "$R"
 B=.gpu/bin/bench_flow
 M=.gpu/models
 nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.mem --format=csv 2>&1 | tee "$R/gpu.txt"
+# The default crowd of `bodybuilder flow`: the built-in body and three seeded variants, built here with
+# `bodybuilder build -o .gpu/models --variants 3 --no-errors`.
+C4="--model $M/default.glb --model $M/default_v1.glb --model $M/default_v2.glb --model $M/default_v3.glb"
+T_END=$((SECONDS + ${GPU_RUN_SECONDS:-540}))  # no new run starts after this (the device's call limit)
 # flow NAME ARGS...: one run, its JSON report as $R/NAME.json, a line of figures on stdout.
 flow() {
   local name=$1; shift
   local t0=$SECONDS
+  if [ $SECONDS -ge $T_END ]; then echo "$name skipped (time)"; return; fi
   if timeout 300 "$B" flow "$@" -o "$R/$name" --json >"$R/$name.json" 2>"$R/$name.err"; then
     python3 - "$R/$name.json" "$name" $((SECONDS - t0)) <<'PY'
 import json, sys
@@ -29,6 +34,9 @@ r = json.load(open(sys.argv[1]))
 def line(x, tag):
     return f"{tag:28s} geo {x.get('geometry_ms',0):8.3f} imp {x.get('impostor_ms',0):8.3f} x{1/x['ratio'] if x.get('ratio') else 0:6.2f} f {x.get('refresh_fraction',0):.3f} psnr {x.get('psnr_db',0):5.1f} ssim {x.get('ssim',0):.3f}"
 print(line(r, sys.argv[2]) + f"  ({sys.argv[3]} s) {r.get('device','')[:40]}")
+sp = r.get('frame_ms_split')
+if sp:
+    print("  split " + " | ".join(f"{k} " + "/".join(f"{v:.3f}" for v in d.values()) for k, d in sp.items() if isinstance(d, dict)))
 for s in r.get('sweep', []):
     print(line(s, "  %s" % s.get('threshold', s.get('view_deg', s.get('posture')))))
 for s in r.get('scaling', []):
@@ -96,6 +104,49 @@ set_quality() {
   done
   flow scaling_sw --model $M/default.glb --frames 2 --scaling --scaling-humans 20,1000,10000 --scaling-frames 5
 }
-set_${1:-main}
+# Seventeenth session: the present code on the default four-body crowd, the other models' view sweeps,
+# crowd sizes, and the best-quality part cards at 20 to 1,000 humans.
+set_s17() {
+  local q="--impostor-parts --texels-per-pixel 2 --card-depth pass"
+  flow main $C4 --frames 120
+  flow main_stages $C4 --frames 60 --gpu-stages
+  flow worst $C4 --frames 60 --posture 0 --view 0
+  flow sweep_view $C4 --frames 60 --sweep view
+  flow scaling $C4 --frames 2 --gpu-stages --scaling --scaling-humans 20,100,500,1000,2000,5000,10000 --scaling-frames 8
+  flow best_8 $C4 --frames 60 --view 8 $q
+  for n in 200 1000; do
+    flow best_8_h$n $C4 --frames 30 --humans $n --view 8 $q --gpu-stages
+    flow main_h$n $C4 --frames 30 --humans $n --gpu-stages
+  done
+  flow parts_view $C4 --frames 40 --sweep view --impostor-parts
+  for m in CesiumMan.glb Fox.glb RiggedSimple.gltf SimpleSkin.gltf; do
+    flow view_${m%%.*} --model $M/$m --frames 40 --sweep view
+  done
+  flow sweep_posture $C4 --frames 60 --sweep posture
+  flow scaling_dw $C4 --frames 2 --distance-weighting --scaling --scaling-humans 1000,10000 --scaling-frames 8
+}
+# Where the impostor frame's CPU time goes at 10,000 humans and its GPU time at 20: planner threads,
+# one model against four, blending's sort (the alpha test needs none), the coverage pass (boxes).
+set_diag() {
+  local sc="--frames 2 --scaling --scaling-humans 10000 --scaling-frames 16"
+  flow d_c4_t0 $C4 $sc
+  flow d_c4_t1 $C4 $sc --planner-threads 1
+  flow d_c4_t4 $C4 $sc --planner-threads 4
+  flow d_1_t0 --model $M/default.glb $sc
+  flow d_1_t1 --model $M/default.glb $sc --planner-threads 1
+  flow d_c4_test $C4 $sc --impostor-edges test
+  flow d_main_1 --model $M/default.glb --frames 120
+  flow d_main_boxes $C4 --frames 120 --quad-fit boxes
+  flow d_worst_1 --model $M/default.glb --frames 60 --posture 0 --view 0
+  flow d_worst_boxes $C4 --frames 60 --posture 0 --view 0 --quad-fit boxes
+  flow d_worst_1_stages --model $M/default.glb --frames 60 --posture 0 --view 0 --gpu-stages
+}
+# The crowd sizes of the default crowd, with and without the paper's distance weighting.
+set_crowd() {
+  flow scaling $C4 --frames 2 --gpu-stages --scaling --scaling-humans 20,100,500,1000,2000,5000,10000 --scaling-frames 16
+  flow scaling_dw $C4 --frames 2 --distance-weighting --scaling --scaling-humans 1000,10000 --scaling-frames 16
+  flow scaling_1 --model $M/default.glb --frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 16
+}
+for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"

@@ -221,7 +221,7 @@ void FramePlanner::Chunk::clear(std::size_t lods) {
 unsigned FramePlanner::planner_threads() {
   unsigned want = config_.planner_threads;
   if (want == 0) want = std::max(1u, std::thread::hardware_concurrency());
-  if (want > 1 && (!pool_ || pool_->size() != want)) pool_ = std::make_shared<WorkerPool>(want);
+  if (want > 1 && (!pool_ || pool_->size() != want)) pool_ = WorkerPool::shared(want);
   return want;
 }
 
@@ -512,7 +512,9 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
     // order; characters whose atlas window must be allocated or changed are then planned one by
     // one in crowd order (the allocator is shared, and its choices must not depend on the
     // threads), after the others. So the plan is the same whatever the number of threads.
-    const std::size_t chunks = std::min<std::size_t>(n / (kParallelCharacters / 4), 4 * std::size_t{threads});
+    // As many threads as the crowd keeps busy: a wake-up costs more than a few hundred characters.
+    const unsigned used = static_cast<unsigned>(std::clamp<std::size_t>(n / kCharactersPerThread, 1, threads));
+    const std::size_t chunks = std::min<std::size_t>(n / (kParallelCharacters / 4), 4 * std::size_t{used});
     if (chunks_.size() < chunks) chunks_.resize(chunks);
     auto run_chunk = [&](std::size_t c) {
       Chunk& k = chunks_[c];
@@ -520,8 +522,8 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
       const Out o{&k.geometry, &k.snapshots, &k.billboards, &k.pending, &k.st, &k.budget_used, &k.deferred};
       for (std::size_t i = n * c / chunks, e = n * (c + 1) / chunks; i < e; ++i) plan_character(i, crowd[i], fs, o);
     };
-    if (threads > 1) {
-      pool_->run(chunks, run_chunk);
+    if (used > 1) {
+      pool_->run(chunks, run_chunk, used);
     } else {
       for (std::size_t c = 0; c < chunks; ++c) run_chunk(c);
     }

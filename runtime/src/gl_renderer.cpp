@@ -16,6 +16,7 @@
 #include <glm/gtc/type_ptr.hpp>
 
 #include "bb/runtime/renderer.h"
+#include "depth_order.h"
 #include "gl.h"
 
 namespace bb::runtime {
@@ -674,7 +675,10 @@ struct Renderer::Impl {
   StreamBuffer instances, snapshots, billboards;
   std::vector<InstanceGpu> instance_scratch;
   std::vector<SnapshotGpu> snapshot_scratch;
-  std::vector<std::pair<float, std::uint32_t>> billboard_order;  // blending: (-depth, index)
+  // Blending: the quads' -depth, and their order back to front.
+  std::vector<float> billboard_depth;
+  std::vector<std::uint32_t> billboard_order;
+  DepthOrder depth_order;
   std::vector<BillboardGpu> billboard_scratch;
   struct Due {
     std::int32_t lod, page, index;  // index into the plan's list of that lod
@@ -1215,13 +1219,12 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
       // Blending: back to front (distance of Ta along the view direction), so that soft edges
       // fall on what lies behind them.
       const glm::vec3 fwd = glm::normalize(plan.camera.target - plan.camera.eye);
-      d.billboard_order.clear();
+      d.billboard_depth.resize(plan.billboards.size());
       for (std::size_t i = 0; i < plan.billboards.size(); ++i)
-        d.billboard_order.emplace_back(-glm::dot(glm::vec3(plan.billboards[i].ta_half) - plan.camera.eye, fwd),
-                                       static_cast<std::uint32_t>(i));
-      std::sort(d.billboard_order.begin(), d.billboard_order.end());
-      d.billboard_scratch.clear();
-      for (const auto& o : d.billboard_order) d.billboard_scratch.push_back(plan.billboards[o.second]);
+        d.billboard_depth[i] = -glm::dot(glm::vec3(plan.billboards[i].ta_half) - plan.camera.eye, fwd);
+      d.depth_order.sort(d.billboard_depth, d.billboard_order);
+      d.billboard_scratch.resize(plan.billboards.size());
+      for (std::size_t k = 0; k < d.billboard_order.size(); ++k) d.billboard_scratch[k] = plan.billboards[d.billboard_order[k]];
       d.billboards.upload(d.billboard_scratch.data(), d.billboard_scratch.size() * sizeof(BillboardGpu));
     } else {
       d.billboards.upload(plan.billboards.data(), plan.billboards.size() * sizeof(BillboardGpu));

@@ -377,10 +377,12 @@ TEST(FramePlanner, RefreshBudgetServesTheStalestFirst) {
 TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
   Model m = tiny_model();
   Crowd crowd(m);
-  for (int i = 0; i < 640; ++i)
-    crowd.add(Character{glm::vec3(3.0f * static_cast<float>(i % 32) - 48.0f, 0, -3.0f * static_cast<float>(i / 32)),
+  // Enough characters for five threads (FramePlanner::kCharactersPerThread each).
+  const int n = 2600;
+  for (int i = 0; i < n; ++i)
+    crowd.add(Character{glm::vec3(1.5f * static_cast<float>(i % 64) - 48.0f, 0, -1.5f * static_cast<float>(i / 64)),
                         0.1f * static_cast<float>(i % 7), 1.0f, 0, 0.013f * static_cast<float>(i), 1.0f});
-  ASSERT_GE(crowd.size(), FramePlanner::kParallelCharacters);
+  ASSERT_GE(crowd.size(), 5 * FramePlanner::kCharactersPerThread);
   auto bytes_equal = [](const auto& a, const auto& b) {
     return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(a[0])) == 0);
   };
@@ -427,7 +429,7 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
         EXPECT_DOUBLE_EQ(p.stats.quad_texels, ref.stats.quad_texels);
         EXPECT_EQ(p.stats.atlas_windows_used, ref.stats.atlas_windows_used);
       }
-      EXPECT_EQ(ref.stats.impostors + ref.stats.geometry + ref.stats.culled, 640);
+      EXPECT_EQ(ref.stats.impostors + ref.stats.geometry + ref.stats.culled, n);
     }
     // The run did exercise what the threads must agree on.
     EXPECT_GT(changes, 0);

@@ -280,6 +280,8 @@ class FramePlanner {
  public:
   // Crowds from this size on are planned on ImpostorConfig::planner_threads threads.
   static constexpr std::size_t kParallelCharacters = 512;
+  // ... on one thread per this many characters at most (up to planner_threads).
+  static constexpr std::size_t kCharactersPerThread = 512;
   // Leading part cards: the look-ahead's step (seconds) and its most steps.
   static constexpr float kLeadStep = 1.0f / 30.0f;
   static constexpr int kLeadSteps = 45;
