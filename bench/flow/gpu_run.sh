@@ -18,6 +18,7 @@ mkdir -p "$OUT" "$R"
 B=.gpu/bin/bench_flow
 M=.gpu/models
 nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.mem --format=csv 2>&1 | tee "$R/gpu.txt"
+echo "cpus: $(nproc), cgroup cpu.max: $(cat /sys/fs/cgroup/cpu.max 2>/dev/null || echo none), $(grep -m1 'model name' /proc/cpuinfo)" | tee -a "$R/gpu.txt"
 # The default crowd of `bodybuilder flow`: the built-in body and three seeded variants, built here with
 # `bodybuilder build -o .gpu/models --variants 3 --no-errors`.
 C4="--model $M/default.glb --model $M/default_v1.glb --model $M/default_v2.glb --model $M/default_v3.glb"
@@ -148,5 +149,5 @@ set_crowd() {
   flow scaling_1 --model $M/default.glb --frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 16
 }
 for set in ${@:-main}; do set_$set; done
-(cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
+(cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"

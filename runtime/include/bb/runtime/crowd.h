@@ -376,7 +376,9 @@ class FramePlanner {
     int* budget_used;
     std::vector<std::uint32_t>* deferred;
   };
-  struct Chunk {
+  // A chunk's lists and counters, written by one thread: on cache lines of their own (a counter
+  // beside the next chunk's list heads would be written by two threads at once).
+  struct alignas(128) Chunk {
     std::vector<std::vector<InstanceGpu>> geometry;
     std::vector<std::vector<SnapshotGpu>> snapshots;
     std::vector<BillboardGpu> billboards;
