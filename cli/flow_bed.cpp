@@ -127,6 +127,12 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
     crowds.emplace_back(*models[m]);
     crowds.back().reserve(static_cast<std::size_t>(humans_m));
   }
+  std::vector<FramePlanner*> planner_ptrs;
+  std::vector<const Crowd*> crowd_ptrs;
+  for (int m = 0; m < nm; ++m) {
+    planner_ptrs.push_back(planners[m].get());
+    crowd_ptrs.push_back(&crowds[m]);
+  }
   auto target_g = OffscreenTarget::create(s.width, s.height, s.msaa);
   if (!target_g) return target_g.error();
   // Impostor frames hold impostors only: blended edges need no multisampled target.
@@ -225,7 +231,12 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
       target.bind(true);
       gpu_finish();
       auto t0 = Clock::now();
-      for (int m = 0; m < nm; ++m) plans[m] = &planners[m]->plan(crowds[m], cam, t, mode);
+      if (nm == 1) {
+        plans[0] = &planners[0]->plan(crowds[0], cam, t, mode);
+      } else {  // the models' large crowds planned in one call on the threads
+        FramePlanner::plan_many(planner_ptrs, crowd_ptrs, cam, t, mode);
+        for (int m = 0; m < nm; ++m) plans[m] = &planners[m]->plan_of_last_frame();
+      }
       auto t1 = Clock::now();
       if (nm == 1 || draw_options.time_stages) {
         for (int m = 0; m < nm; ++m) renderers[m]->draw(*plans[m], draw_options);

@@ -443,9 +443,11 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
   }
 }
 
-const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode) {
+std::size_t FramePlanner::begin_frame(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode) {
   const Model& m = *model_;
   const std::size_t n = crowd.size();
+  Frame& fr = frame_;
+  fr.crowd = &crowd;
   // Part cards on or off: start over with the other kind of windows.
   const int want_parts = config_.part_cards ? static_cast<int>(m.body_parts().size()) : 1;
   if (want_parts != parts_) {
@@ -474,59 +476,130 @@ const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camer
   plan_.billboards.clear();
   if (plan_.billboards.capacity() < n * parts_) plan_.billboards.reserve(n * parts_);
   plan_.camera = camera;
-  FrameStats st;
-  st.characters = static_cast<int>(n);
+  fr.st = FrameStats{};
+  fr.st.characters = static_cast<int>(n);
+  fr.budget_used = 0;
 
   // Frustum planes (world) from the view-projection matrix, for the snapshot sphere.
   const glm::mat4 vp = camera.projection() * camera.view();
-  std::array<glm::vec4, 6> planes;
+  std::array<glm::vec4, 6>& planes = fr.planes;
   for (int i = 0; i < 3; ++i) {
     planes[2 * i] = glm::vec4(vp[0][3] + vp[0][i], vp[1][3] + vp[1][i], vp[2][3] + vp[2][i], vp[3][3] + vp[3][i]);
     planes[2 * i + 1] = glm::vec4(vp[0][3] - vp[0][i], vp[1][3] - vp[1][i], vp[2][3] - vp[2][i], vp[3][3] - vp[3][i]);
   }
   for (auto& p : planes) p /= glm::length(glm::vec3(p));
-  glm::vec3 cam_right, cam_up, fwd;
-  camera_axes(camera, cam_right, cam_up, fwd);
-  const float ppm1 = camera.pixels_per_metre(1.0f);
-  const bool impostor_mode = mode != RenderMode::kGeometry;
+  camera_axes(camera, fr.cam_right, fr.cam_up, fr.fwd);
+  fr.camera = camera;
+  fr.time = time;
+  fr.mode = mode;
+  fr.ppm1 = camera.pixels_per_metre(1.0f);
+  fr.impostor_mode = mode != RenderMode::kGeometry;
   const CacheConfig& cc = config_.cache;
-  const float cos_view = std::cos(glm::radians(cc.view_threshold_deg));
-  const float switch_px = static_cast<float>(config_.windows.size[0]) * config_.geometry_switch;
-  const float page = static_cast<float>(atlas_.page_size());
+  fr.cos_view = std::cos(glm::radians(cc.view_threshold_deg));
+  fr.switch_px = static_cast<float>(config_.windows.size[0]) * config_.geometry_switch;
+  fr.page = static_cast<float>(atlas_.page_size());
   // LOD of each window class (section 4.3: the snapshot uses the level that matches the window).
-  std::array<int, 8> window_lod{};
-  for (int w = 0; w < config_.windows.count; ++w) window_lod[w] = lod_for(static_cast<float>(config_.windows.size[w]), camera.height);
+  fr.window_lod = {};
+  for (int w = 0; w < config_.windows.count; ++w) fr.window_lod[w] = lod_for(static_cast<float>(config_.windows.size[w]), camera.height);
 
-  const bool budget = cc.refresh_budget > 0 && parts_ == 1;
+  fr.budget = cc.refresh_budget > 0 && parts_ == 1;
   budget_left_ = cc.refresh_budget;
   pending_.clear();
   pending_parts_.clear();
   if (parts_ > 1) refreshed_.assign(n, 0);
 
-  FrameSetup fs{camera, planes, cam_right, cam_up, fwd, ppm1, cos_view, switch_px, page, time, impostor_mode, budget, mode, window_lod};
-  int budget_used = 0;
-  const Out serial{&plan_.geometry, &plan_.snapshots, &plan_.billboards, &pending_, &st, &budget_used, nullptr};
-  const unsigned threads = planner_threads();
+
+  // Crowds of kParallelCharacters and more (without part cards) are planned in chunks, each into
+  // its own lists, joined in crowd order by end_frame; characters whose atlas window must be
+  // allocated or changed are then planned one by one in crowd order (the allocator is shared,
+  // and its choices must not depend on the threads), after the others. So the plan is the same
+  // whatever the number of threads.
+  fr.chunks = 0;
   if (parts_ == 1 && n >= kParallelCharacters) {
-    // Characters in chunks on the worker pool, each chunk into its own lists, joined in crowd
-    // order; characters whose atlas window must be allocated or changed are then planned one by
-    // one in crowd order (the allocator is shared, and its choices must not depend on the
-    // threads), after the others. So the plan is the same whatever the number of threads.
-    // As many threads as the crowd keeps busy: a wake-up costs more than a few hundred characters.
-    const unsigned used = static_cast<unsigned>(std::clamp<std::size_t>(n / kCharactersPerThread, 1, threads));
-    const std::size_t chunks = std::min<std::size_t>(n / (kParallelCharacters / 4), 4 * std::size_t{used});
-    if (chunks_.size() < chunks) chunks_.resize(chunks);
-    auto run_chunk = [&](std::size_t c) {
-      Chunk& k = chunks_[c];
-      k.clear(m.lods.size());
-      const Out o{&k.geometry, &k.snapshots, &k.billboards, &k.pending, &k.st, &k.budget_used, &k.deferred};
-      for (std::size_t i = n * c / chunks, e = n * (c + 1) / chunks; i < e; ++i) plan_character(i, crowd[i], fs, o);
-    };
-    if (used > 1) {
-      pool_->run(chunks, run_chunk, used);
-    } else {
-      for (std::size_t c = 0; c < chunks; ++c) run_chunk(c);
+    fr.chunks = std::min<std::size_t>(n / (kParallelCharacters / 4), 4 * std::size_t{max_useful_threads(n)});
+    if (chunks_.size() < fr.chunks) chunks_.resize(fr.chunks);
+  }
+  return fr.chunks;
+}
+
+FramePlanner::FrameSetup FramePlanner::frame_setup() const {
+  const Frame& fr = frame_;
+  return FrameSetup{fr.camera, fr.planes, fr.cam_right, fr.cam_up, fr.fwd, fr.ppm1, fr.cos_view, fr.switch_px,
+                    fr.page, fr.time, fr.impostor_mode, fr.budget, fr.mode, fr.window_lod};
+}
+
+unsigned FramePlanner::max_useful_threads(std::size_t characters) {
+  // As many threads as the crowd keeps busy: a wake-up costs more than a few hundred characters.
+  return static_cast<unsigned>(std::clamp<std::size_t>(characters / kCharactersPerThread, 1, planner_threads()));
+}
+
+void FramePlanner::plan_chunk(std::size_t c) {
+  const Frame& fr = frame_;
+  const Crowd& crowd = *fr.crowd;
+  const std::size_t n = crowd.size();
+  const FrameSetup fs = frame_setup();
+  Chunk& k = chunks_[c];
+  k.clear(model_->lods.size());
+  const Out o{&k.geometry, &k.snapshots, &k.billboards, &k.pending, &k.st, &k.budget_used, &k.deferred};
+  for (std::size_t i = n * c / fr.chunks, e = n * (c + 1) / fr.chunks; i < e; ++i) plan_character(i, crowd[i], fs, o);
+}
+
+const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode) {
+  const std::size_t chunks = begin_frame(crowd, camera, time, mode);
+  const unsigned used = chunks > 0 ? max_useful_threads(crowd.size()) : 1;
+  auto run_chunk = [this](std::size_t c) { plan_chunk(c); };
+  if (used > 1) {
+    pool_->run(chunks, run_chunk, used);
+  } else {
+    for (std::size_t c = 0; c < chunks; ++c) run_chunk(c);
+  }
+  return end_frame();
+}
+
+void FramePlanner::plan_many(std::span<FramePlanner* const> planners, std::span<const Crowd* const> crowds,
+                             const SceneCamera& camera, float time, RenderMode mode) {
+  assert(planners.size() == crowds.size());
+  // Every planner's chunks in one call on the first planner's pool: one wake-up for all.
+  std::size_t total = 0, characters = 0;
+  std::array<std::size_t, 65> first{};  // planners' first chunk in the joint numbering
+  const std::size_t joint = std::min<std::size_t>(planners.size(), 64);
+  for (std::size_t p = 0; p < planners.size(); ++p) {
+    const std::size_t c = planners[p]->begin_frame(*crowds[p], camera, time, mode);
+    if (p < joint) {
+      first[p] = total;
+      total += c;
+      if (c > 0) characters += crowds[p]->size();
+    } else {  // past 64 planners: on their own (a crowd of that many models plans them in turn)
+      for (std::size_t k = 0; k < c; ++k) planners[p]->plan_chunk(k);
     }
+  }
+  first[joint] = total;
+  if (total > 0) {
+    auto run_chunk = [&](std::size_t g) {
+      const std::size_t p = static_cast<std::size_t>(std::upper_bound(first.begin(), first.begin() + joint + 1, g) - first.begin()) - 1;
+      planners[p]->plan_chunk(g - first[p]);
+    };
+    FramePlanner& lead = *planners[0];
+    const unsigned used = lead.max_useful_threads(characters);
+    if (used > 1) {
+      lead.pool_->run(total, run_chunk, used);
+    } else {
+      for (std::size_t g = 0; g < total; ++g) run_chunk(g);
+    }
+  }
+  for (FramePlanner* p : planners) p->end_frame();
+}
+
+const FramePlan& FramePlanner::end_frame() {
+  Frame& fr = frame_;
+  const Crowd& crowd = *fr.crowd;
+  const std::size_t n = crowd.size();
+  const FrameSetup fs = frame_setup();
+  FrameStats& st = fr.st;
+  int& budget_used = fr.budget_used;
+  const Out serial{&plan_.geometry, &plan_.snapshots, &plan_.billboards, &pending_, &st, &budget_used, nullptr};
+  if (fr.chunks > 0) {
+    const std::size_t chunks = fr.chunks;
     for (std::size_t c = 0; c < chunks; ++c) {
       Chunk& k = chunks_[c];
       const auto base = static_cast<std::uint32_t>(plan_.billboards.size());

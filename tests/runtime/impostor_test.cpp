@@ -440,6 +440,60 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
   }
 }
 
+// FramePlanner::plan_many plans several models' crowds together; each plan must be the one
+// plan() makes: three crowds (parallel, parallel, serial sizes), frame after frame.
+TEST(FramePlanner, PlanManyMakesTheSamePlansAsPlan) {
+  Model m = tiny_model();
+  std::vector<Crowd> crowds(3, Crowd(m));
+  const int sizes[3] = {1800, 700, 100};
+  for (int k = 0; k < 3; ++k)
+    for (int i = 0; i < sizes[k]; ++i)
+      crowds[k].add(Character{glm::vec3(1.5f * static_cast<float>(i % 48) - 36.0f + 0.5f * static_cast<float>(k), 0,
+                                        -1.5f * static_cast<float>(i / 48)),
+                              0.1f * static_cast<float>((i + k) % 7), 1.0f, 0, 0.011f * static_cast<float>(i + 3 * k), 1.0f});
+  ImpostorConfig cfg;
+  cfg.max_pages = 64;
+  cfg.cache.refresh_budget = 60;
+  cfg.planner_threads = 3;
+  std::vector<FramePlanner> alone, together;
+  for (int k = 0; k < 3; ++k) {
+    alone.emplace_back(m, cfg);
+    together.emplace_back(m, cfg);
+  }
+  const std::array<FramePlanner*, 3> ptrs{&together[0], &together[1], &together[2]};
+  const std::array<const Crowd*, 3> cptrs{&crowds[0], &crowds[1], &crowds[2]};
+  auto bytes_equal = [](const auto& a, const auto& b) {
+    return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(a[0])) == 0);
+  };
+  int snapshots = 0;
+  for (int f = 0; f < 8; ++f) {
+    SceneCamera cam = facing_camera(100.0f - 10.0f * static_cast<float>(std::min(f, 3)));
+    for (auto& c : crowds)
+      for (std::size_t i = 0; i < c.size(); i += 4) c[i].yaw += 0.03f;
+    const float t = 0.05f * static_cast<float>(f);
+    const RenderMode mode = f == 5 ? RenderMode::kGeometry : RenderMode::kAuto;
+    FramePlanner::plan_many(ptrs, cptrs, cam, t, mode);
+    for (int k = 0; k < 3; ++k) {
+      SCOPED_TRACE(testing::Message() << "frame " << f << ", crowd " << k);
+      const FramePlan& ref = alone[k].plan(crowds[k], cam, t, mode);
+      const FramePlan& p = together[k].plan_of_last_frame();
+      EXPECT_TRUE(bytes_equal(p.billboards, ref.billboards));
+      for (std::size_t l = 0; l < ref.geometry.size(); ++l) {
+        EXPECT_TRUE(bytes_equal(p.geometry[l], ref.geometry[l]));
+        EXPECT_TRUE(bytes_equal(p.snapshots[l], ref.snapshots[l]));
+      }
+      EXPECT_EQ(p.stats.impostors, ref.stats.impostors);
+      EXPECT_EQ(p.stats.geometry, ref.stats.geometry);
+      EXPECT_EQ(p.stats.culled, ref.stats.culled);
+      EXPECT_EQ(p.stats.snapshots, ref.stats.snapshots);
+      EXPECT_EQ(p.stats.deferred_refreshes, ref.stats.deferred_refreshes);
+      EXPECT_EQ(p.stats.characters, sizes[k]);
+      snapshots += ref.stats.snapshots;
+    }
+  }
+  EXPECT_GT(snapshots, 0);
+}
+
 TEST(FramePlanner, WindowSizeCullingAndNearSwitch) {
   Model m = tiny_model();
   Crowd crowd(m);

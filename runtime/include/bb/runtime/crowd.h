@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -292,6 +293,16 @@ class FramePlanner {
   // impostor cache untouched. The returned plan stays valid until the next call.
   const FramePlan& plan(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode);
 
+  // One frame of several planners (one per model, each with its crowd: crowds[k] is of
+  // planners[k]'s model), every plan the same as plan() would make, planned together: the large
+  // crowds' chunks in one call on planners[0]'s threads instead of one call per model (the
+  // wake-ups and the waits for the last thread are paid once). The plans are then each
+  // planner's plan_of_last_frame(). Planners must be distinct.
+  static void plan_many(std::span<FramePlanner* const> planners, std::span<const Crowd* const> crowds,
+                        const SceneCamera& camera, float time, RenderMode mode);
+  // What the last plan() or plan_many() returned or made; valid until the next.
+  const FramePlan& plan_of_last_frame() const { return plan_; }
+
   // Forces a new snapshot of every impostor at the next impostor frame.
   void invalidate();
   ImpostorConfig& config() { return config_; }
@@ -391,6 +402,29 @@ class FramePlanner {
   // Plans character i: culling, geometry LOD or impostor (cache tests, snapshot, card).
   void plan_character(std::size_t i, const Character& ch, const FrameSetup& fs, const Out& out);
   unsigned planner_threads();  // starts the pool when more than one thread is wanted
+  unsigned max_useful_threads(std::size_t characters);  // at most planner_threads()
+  // A frame in three steps: begin_frame (serial; returns the number of chunks to plan, 0: the
+  // crowd is planned serially by end_frame), plan_chunk for each (any thread, any order),
+  // end_frame (joins the chunks, serves the budget, returns the plan).
+  std::size_t begin_frame(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode);
+  void plan_chunk(std::size_t c);
+  const FramePlan& end_frame();
+  // The frame being planned (what FrameSetup refers to).
+  struct Frame {
+    const Crowd* crowd = nullptr;
+    SceneCamera camera;
+    std::array<glm::vec4, 6> planes{};  // frustum, world
+    glm::vec3 cam_right{0.0f}, cam_up{0.0f}, fwd{0.0f};
+    float ppm1 = 0, cos_view = 0, switch_px = 0, page = 0, time = 0;
+    bool impostor_mode = false, budget = false;
+    RenderMode mode = RenderMode::kAuto;
+    std::array<int, 8> window_lod{};
+    FrameStats st;
+    int budget_used = 0;
+    std::size_t chunks = 0;
+  };
+  FrameSetup frame_setup() const;
+  Frame frame_;
   const Model* model_;
   ImpostorConfig config_;
   std::shared_ptr<WorkerPool> pool_;
