@@ -69,7 +69,6 @@ class WorkerPool {
       count_ = count;
       next_.store(0);
       busy_ = slots_ = helpers;
-      ++generation_;
     }
     if (helpers == threads_.size()) {
       wake_.notify_all();
@@ -86,17 +85,17 @@ class WorkerPool {
     for (std::size_t k; (k = next_.fetch_add(1)) < count;) call(ctx, k);
   }
   void work_loop() {
-    std::size_t seen = 0;
     for (;;) {
       void (*call)(void*, std::size_t);
       void* ctx;
       std::size_t count;
       {
+        // Wakes while the call still wants helpers: each wake-up a call sends is then a helper
+        // (a worker woken again after helping, or one that was not asleep, takes a place no
+        // wake-up is lost on), so the call's wait for its helpers ends.
         std::unique_lock<std::mutex> lock(m_);
-        wake_.wait(lock, [&] { return stop_ || generation_ != seen; });
+        wake_.wait(lock, [&] { return stop_ || slots_ > 0; });
         if (stop_) return;
-        seen = generation_;
-        if (slots_ == 0) continue;  // this call wants fewer helpers; sleep until the next
         --slots_;
         call = call_;
         ctx = ctx_;
@@ -115,7 +114,7 @@ class WorkerPool {
   std::condition_variable wake_, done_;
   bool stop_ = false;
   // busy_: helpers of the current call not yet done; slots_: helpers it still wants.
-  std::size_t generation_ = 0, busy_ = 0, slots_ = 0, count_ = 0;
+  std::size_t busy_ = 0, slots_ = 0, count_ = 0;
   void (*call_)(void*, std::size_t) = nullptr;
   void* ctx_ = nullptr;
   std::atomic<std::size_t> next_{0};
