@@ -28,7 +28,7 @@ flow() {
   local name=$1; shift
   local t0=$SECONDS
   if [ $SECONDS -ge $T_END ]; then echo "$name skipped (time)"; return; fi
-  if timeout 300 "$B" flow "$@" -o "$R/$name" --json >"$R/$name.json" 2>"$R/$name.err"; then
+  if timeout "${FLOW_TIMEOUT:-300}" "$B" flow "$@" -o "$R/$name" --json >"$R/$name.json" 2>"$R/$name.err"; then
     python3 - "$R/$name.json" "$name" $((SECONDS - t0)) <<'PY'
 import json, sys
 r = json.load(open(sys.argv[1]))
