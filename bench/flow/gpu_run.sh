@@ -148,6 +148,14 @@ set_crowd() {
   flow scaling_dw $C4 --frames 2 --distance-weighting --scaling --scaling-humans 1000,10000 --scaling-frames 16
   flow scaling_1 --model $M/default.glb --frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 16
 }
+# Anyone's models in large crowds.
+set_models() {
+  local sc="--frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 16"
+  for m in CesiumMan.glb Fox.glb RiggedSimple.gltf; do
+    flow sc_${m%%.*} --model $M/$m $sc
+    flow sc_${m%%.*}_dw --model $M/$m $sc --distance-weighting
+  done
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"
