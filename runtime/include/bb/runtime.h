@@ -23,6 +23,10 @@
 //   (*renderer)->draw(plan);                      // into the bound framebuffer
 //   const rt::FrameStats& s = plan.stats;         // geometry, impostors, snapshots, refresh_fraction,
 //                                                 // atlas_pages_used, atlas_pixel_use, ...
+//   // Several models: a planner, renderer and crowd each, planned together (one call on the
+//   // planner's threads), then each drawn:
+//   rt::FramePlanner::plan_many(planners, crowds, cam, seconds, rt::RenderMode::kAuto);
+//   for (k ...) renderers[k]->draw(planners[k]->plan_of_last_frame());
 //
 // CMake: find_package(bb REQUIRED) then target_link_libraries(game PRIVATE bb::runtime).
 #pragma once
