@@ -494,7 +494,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "Impostor quads: boxes (the projected pose and part boxes) or coverage (shrunk on the GPU to the snapshot's covered texels)")
       ->capture_default_str();
   cmd->add_option("--planner-threads", a->planner_threads,
-                  "Threads planning each frame of crowds of 512 and more (0: one per hardware thread; the plan is the same)")
+                  "Most threads planning each frame of crowds of 512 and more, one per 512 characters at most (0: one per hardware thread; the plan is the same)")
       ->capture_default_str();
   cmd->add_flag("--gpu-stages", a->gpu_stages,
                 "Also time the renderer's stages on the GPU (snapshots, coverage, geometry, impostors; gpu_ms_stages in the report)");

@@ -508,7 +508,6 @@ std::size_t FramePlanner::begin_frame(const Crowd& crowd, const SceneCamera& cam
   pending_parts_.clear();
   if (parts_ > 1) refreshed_.assign(n, 0);
 
-
   // Crowds of kParallelCharacters and more (without part cards) are planned in chunks, each into
   // its own lists, joined in crowd order by end_frame; characters whose atlas window must be
   // allocated or changed are then planned one by one in crowd order (the allocator is shared,
