@@ -35,6 +35,9 @@ r = json.load(open(sys.argv[1]))
 def line(x, tag):
     return f"{tag:28s} geo {x.get('geometry_ms',0):8.3f} imp {x.get('impostor_ms',0):8.3f} x{1/x['ratio'] if x.get('ratio') else 0:6.2f} f {x.get('refresh_fraction',0):.3f} psnr {x.get('psnr_db',0):5.1f} ssim {x.get('ssim',0):.3f}"
 print(line(r, sys.argv[2]) + f"  ({sys.argv[3]} s) {r.get('device','')[:40]}")
+spr = r.get('frame_ms_spread')
+if spr:
+    print("  spread " + " | ".join(f"{k} p95 {d['p95']:.3f} max {d['max']:.3f} sd {d['sd']:.3f}" for k, d in spr.items()) + f" | snapshots_max {r.get('snapshots_max')}")
 sp = r.get('frame_ms_split')
 if sp:
     print("  split " + " | ".join(f"{k} " + "/".join(f"{v:.3f}" for v in d.values()) for k, d in sp.items() if isinstance(d, dict)))
@@ -155,6 +158,13 @@ set_models() {
     flow sc_${m%%.*} --model $M/$m $sc
     flow sc_${m%%.*}_dw --model $M/$m $sc --distance-weighting
   done
+}
+# The paper's first item of future work on a GPU: a quasi-constant frame rate from a refresh budget.
+# 10,000 humans of the default crowd, no screen weighting (about 800 refreshes a frame unbudgeted).
+set_budget() {
+  local b="--humans 10000 --frames 60 --screen-weighting off"
+  flow budget_none $C4 $b
+  for n in 400 200 100; do flow budget_$n $C4 $b --refresh-budget $n; done
 }
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
