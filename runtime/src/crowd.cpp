@@ -362,7 +362,12 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
       }
       const AtlasWindow& win = cs.window;
       const int slot = coverage_slot_of(win);
-      if (refresh) {
+      if (refresh && !must && budget && !out.forced) {
+        // Stale: drawn from its old snapshot unless the budget reaches it. Its refresh is worked
+        // out only then (end_frame plans it again, forced): most stale impostors wait.
+        out.pending->push_back(PendingRefresh{staleness, static_cast<std::uint32_t>(i),
+                                              static_cast<std::uint32_t>(out.billboards->size())});
+      } else if (refresh) {
         std::optional<SnapshotCamera> aligned;
         if (config_.aligned_snapshots)
           aligned = make_aligned_snapshot_camera(camera, ta, radius, win.size, config_.texels_per_pixel);
@@ -410,22 +415,12 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
         const int slod = config_.snapshot_lod_from_screen ? std::min(lod_for(pixels, camera.height), lods - 1)
                                                           : window_lod[win.size_class];
         const float tpp = window_texels_per_pixel(win.size, sc.half_size, depth, ppm1);
-        if (must || !budget) {
-          cs = next;
-          (*out.snapshots)[slod].push_back(
-              snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect, slot, next.fitted, tpp));
-          ++st.snapshots;
-          st.snapshot_triangles += m.lods[slod].triangle_count();
-          ++*out.budget_used;
-        } else {
-          // Stale: drawn from its old snapshot unless the budget reaches it below.
-          out.pending->push_back(PendingRefresh{staleness, static_cast<std::uint32_t>(i),
-                                            static_cast<std::uint32_t>(out.billboards->size()), slod, next,
-                                            snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect,
-                                                         slot, next.fitted, tpp),
-                                            billboard(ta, next, page, slot, cam_right, cam_up),
-                                            m.lods[slod].triangle_count()});
-        }
+        cs = next;
+        (*out.snapshots)[slod].push_back(
+            snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect, slot, next.fitted, tpp));
+        ++st.snapshots;
+        st.snapshot_triangles += m.lods[slod].triangle_count();
+        ++*out.budget_used;
       }
       // The old snapshot is drawn where the character stands now (Ta moves with it).
       out.billboards->push_back(billboard(ta, cs, page, slot, cam_right, cam_up));
@@ -620,17 +615,40 @@ const FramePlan& FramePlanner::end_frame() {
     for (std::size_t i = 0; i < n; ++i) plan_character(i, crowd[i], fs, serial);
   }
   budget_left_ -= budget_used;
-  // The budget left goes to the stalest; the others wait (section 7, item 1).
+  // The budget left goes to the stalest; the others wait (section 7, item 1). The chosen ones are
+  // planned again, forced: the same tests, now refreshed (their snapshot, cache state and quad),
+  // in chunks on the threads like the crowd, joined in the order chosen.
   if (!pending_.empty()) {
     const std::size_t take = stalest_first(pending_, budget_left_);
     for (std::size_t k = 0; k < take; ++k) {
-      const PendingRefresh& r = pending_[k];
-      st.quad_texels += rect_texels(r.state.rect, r.state.window.size) - rect_texels(cache_[r.order].rect, r.state.window.size);
-      cache_[r.order] = r.state;
-      plan_.billboards[r.billboard] = r.card;
-      plan_.snapshots[r.lod].push_back(r.snapshot);
-      ++st.snapshots;
-      st.snapshot_triangles += r.triangles;
+      const CacheState& before = cache_[pending_[k].order];
+      st.quad_texels -= rect_texels(before.rect, before.window.size);
+    }
+    const unsigned used = static_cast<unsigned>(std::clamp<std::size_t>(take / kForcedPerThread, 1, planner_threads()));
+    const std::size_t chunks = take == 0 ? 0 : std::min<std::size_t>(take, 4 * std::size_t{used});
+    if (chunks_.size() < chunks) chunks_.resize(chunks);
+    auto run_chunk = [&](std::size_t c) {
+      Chunk& k = chunks_[c];
+      k.clear(model_->lods.size());
+      const Out o{&k.geometry, &k.snapshots, &k.billboards, nullptr, &k.st, &k.budget_used, nullptr, true};
+      for (std::size_t j = take * c / chunks, e = take * (c + 1) / chunks; j < e; ++j)
+        plan_character(pending_[j].order, crowd[pending_[j].order], fs, o);
+    };
+    if (used > 1) {
+      pool_->run(chunks, run_chunk, used);
+    } else {
+      for (std::size_t c = 0; c < chunks; ++c) run_chunk(c);
+    }
+    for (std::size_t c = 0; c < chunks; ++c) {
+      const Chunk& k = chunks_[c];
+      const std::size_t first = take * c / chunks;
+      assert(k.billboards.size() == take * (c + 1) / chunks - first && k.st.snapshots == static_cast<int>(k.billboards.size()));
+      for (std::size_t j = 0; j < k.billboards.size(); ++j) plan_.billboards[pending_[first + j].billboard] = k.billboards[j];
+      for (std::size_t l = 0; l < plan_.snapshots.size(); ++l)
+        plan_.snapshots[l].insert(plan_.snapshots[l].end(), k.snapshots[l].begin(), k.snapshots[l].end());
+      st.quad_texels += k.st.quad_texels;
+      st.snapshots += k.st.snapshots;
+      st.snapshot_triangles += k.st.snapshot_triangles;
     }
     st.deferred_refreshes = static_cast<int>(pending_.size() - take);
   }

@@ -386,7 +386,7 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
   auto bytes_equal = [](const auto& a, const auto& b) {
     return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(a[0])) == 0);
   };
-  for (int budget : {0, 40}) {
+  for (int budget : {0, 40, 200}) {  // 200: the budget's refreshes planned on several threads too
     ImpostorConfig cfg;
     cfg.cache.refresh_budget = budget;
     cfg.max_pages = 64;
@@ -395,7 +395,7 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
       cfg.planner_threads = threads;
       planners.emplace_back(m, cfg);
     }
-    int changes = 0, deferred = 0, served = 0;
+    int changes = 0, deferred = 0, served = 0, most = 0;
     for (int f = 0; f < 12; ++f) {
       // The camera comes closer for four frames (windows change size), then stays (the budget
       // then serves stale impostors).
@@ -408,6 +408,7 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
       changes += ref.stats.window_refreshes;
       deferred += ref.stats.deferred_refreshes;
       if (f > 4) served += ref.stats.view_refreshes > 0 ? ref.stats.snapshots : 0;
+      if (ref.stats.deferred_refreshes > 0) most = std::max(most, ref.stats.snapshots);
       for (std::size_t k = 1; k < planners.size(); ++k) {
         SCOPED_TRACE(testing::Message() << "budget " << budget << ", frame " << f << ", planner " << k);
         const FramePlan& p = planners[k].plan(crowd, cam, t, RenderMode::kAuto);
@@ -436,6 +437,9 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
     EXPECT_GT(served, 0);
     if (budget > 0) {
       EXPECT_GT(deferred, 0);
+    }
+    if (budget >= 200) {  // a frame whose budget-reached refreshes took several threads
+      EXPECT_GE(most, 2 * static_cast<int>(FramePlanner::kForcedPerThread));
     }
   }
 }

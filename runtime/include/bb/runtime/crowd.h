@@ -283,6 +283,9 @@ class FramePlanner {
   static constexpr std::size_t kParallelCharacters = 512;
   // ... on one thread per this many characters at most (up to planner_threads).
   static constexpr std::size_t kCharactersPerThread = 512;
+  // ... and stale impostors reached by the refresh budget on one thread per this many (a refresh
+  // costs tens of times a character's planning).
+  static constexpr std::size_t kForcedPerThread = 32;
   // Leading part cards: the look-ahead's step (seconds) and its most steps.
   static constexpr float kLeadStep = 1.0f / 30.0f;
   static constexpr int kLeadSteps = 45;
@@ -347,14 +350,10 @@ class FramePlanner {
     bool fitted = false;
   };
   // A stale impostor's refresh, held back until the frame's budget is shared out.
+  // (end_frame works out the refresh of those the budget reaches.)
   struct PendingRefresh {
     float staleness = 0.0f;  // > 1: how far past its thresholds
     std::uint32_t order = 0, billboard = 0;  // the character's index in the crowd; in plan_.billboards
-    int lod = 0;
-    CacheState state;  // what the cache holds once refreshed
-    SnapshotGpu snapshot;
-    BillboardGpu card;
-    std::size_t triangles = 0;
   };
   // The same for one part card.
   struct PendingPart {
@@ -386,6 +385,7 @@ class FramePlanner {
     FrameStats* st;
     int* budget_used;
     std::vector<std::uint32_t>* deferred;
+    bool forced = false;  // a stale impostor the budget reached: refreshed, not left pending
   };
   // A chunk's lists and counters, written by one thread: on cache lines of their own (a counter
   // beside the next chunk's list heads would be written by two threads at once).
