@@ -87,6 +87,30 @@ void BM_UpdateWalking(benchmark::State& state) {
 }
 BENCHMARK(BM_UpdateWalking)->Arg(10000)->Unit(benchmark::kMicrosecond);
 
+// The same with the paper's refresh budget (section 7, item 1): at most 100 refreshes a frame, the
+// stalest first; the others wait and cost only their tests.
+void BM_UpdateWalkingBudget(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  Crowd crowd = make_crowd(n);
+  ImpostorConfig cfg{.max_pages = 256};
+  cfg.cache.refresh_budget = 100;
+  FramePlanner planner(model(), cfg);
+  SceneCamera cam = camera(n);
+  float t = 0.0f;
+  double deferred = 0;
+  for (auto _ : state) {
+    t += 1.0f / 60.0f;
+    const FramePlan& p = planner.plan(crowd, cam, t, RenderMode::kImpostor);
+    deferred += p.stats.deferred_refreshes;
+    benchmark::DoNotOptimize(p.billboards.data());
+  }
+  state.SetItemsProcessed(state.iterations() * n);
+  state.counters["ns_per_character"] =
+      benchmark::Counter(static_cast<double>(n) * state.iterations(), benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["deferred_per_frame"] = deferred / static_cast<double>(state.iterations());
+}
+BENCHMARK(BM_UpdateWalkingBudget)->Arg(10000)->Unit(benchmark::kMicrosecond);
+
 // The geometry path's CPU work: animation state, culling, LOD.
 void BM_UpdateGeometry(benchmark::State& state) {
   const int n = static_cast<int>(state.range(0));
