@@ -501,6 +501,7 @@ std::size_t FramePlanner::begin_frame(const Crowd& crowd, const SceneCamera& cam
   budget_left_ = cc.refresh_budget;
   pending_.clear();
   pending_parts_.clear();
+  part_jobs_.clear();
   if (parts_ > 1) refreshed_.assign(n, 0);
 
   // Crowds of kParallelCharacters and more (without part cards) are planned in chunks, each into
@@ -656,13 +657,17 @@ const FramePlan& FramePlanner::end_frame() {
     const std::size_t take = stalest_first(pending_parts_, budget_left_);
     for (std::size_t k = 0; k < take; ++k) {
       const PendingPart& r = pending_parts_[k];
+      const PartJob& job = part_jobs_[r.job];
       PartCache& pc = part_cache_[r.order];
-      st.quad_texels += rect_texels(r.next.rect, r.next.window.size) - rect_texels(pc.rect, pc.window.size);
-      pc = r.next;
-      plan_.billboards[r.billboard] = r.card;
-      plan_.snapshots[r.lod].push_back(r.snapshot);
+      SnapshotGpu snap;
+      std::size_t tris = 0;
+      const PartCache next = part_card(job, crowd[job.character], fr.camera, fr.time, snap, tris);
+      st.quad_texels += rect_texels(next.rect, next.window.size) - rect_texels(pc.rect, pc.window.size);
+      pc = next;
+      plan_.billboards[r.billboard] = part_billboard(next, job.bone, glm::mat3(1.0f));
+      plan_.snapshots[static_cast<std::size_t>(job.slod)].push_back(snap);
       ++st.part_snapshots;
-      st.snapshot_triangles += r.triangles;
+      st.snapshot_triangles += tris;
       const std::size_t character = r.order / static_cast<std::size_t>(parts_);
       if (!refreshed_[character]) {
         refreshed_[character] = 1;
@@ -681,6 +686,110 @@ const FramePlan& FramePlanner::end_frame() {
   return plan_;
 }
 
+// The direction card job.part's snapshot is taken along (palette space): the mean of the part's
+// line of sight over the coming frames (the clip played on, the eye carried on at its velocity in
+// the character's frame) until it has turned by the view threshold from where it is now, the time
+// a card taken now would last.
+glm::vec3 FramePlanner::lead_direction(const PartJob& job, const Character& ch, float time) const {
+  const Model& m = *model_;
+  const BodyPart& bp = m.body_parts()[static_cast<std::size_t>(job.part)];
+  const BakedClip& bc = m.baked_clips()[static_cast<std::size_t>(job.clip)];
+  const auto pal = m.baked_palette();
+  const int np = static_cast<int>(m.palette.size());
+  const glm::vec3 c = bp.centre;
+  glm::vec3 los0(0.0f), sum(0.0f);
+  for (int k = 0; k <= kLeadSteps; ++k) {
+    const float dt = static_cast<float>(k) * kLeadStep;
+    const BakedFrames g = baked_frames(m, ch, time + dt);
+    const glm::mat4 pm = palette_matrix(pal, np, bc, g.f0, g.f1, g.blend, bp.bone);
+    const glm::vec3 e = job.eye_char + job.eye_vel * dt;
+    const glm::vec3 los = glm::normalize(glm::inverse(glm::mat3(pm)) * (glm::vec3(pm * glm::vec4(c, 1.0f)) - e));
+    if (k == 0) los0 = los;
+    else if (glm::dot(los, los0) < job.cos_view) break;
+    sum += los;
+  }
+  return glm::normalize(sum);
+}
+
+FramePlanner::PartCache FramePlanner::part_card(const PartJob& job, const Character& ch, const SceneCamera& camera,
+                                                float time, SnapshotGpu& s, std::size_t& tris) const {
+  const Model& m = *model_;
+  const int p = job.part;
+  const BodyPart& bp = m.body_parts()[static_cast<std::size_t>(p)];
+  const PartCache& pc = part_cache_[job.character * static_cast<std::size_t>(parts_) + static_cast<std::size_t>(p)];
+  const AtlasWindow& win = pc.window;
+  const int slot = coverage_slot_of(win);
+  const float ppm1 = camera.pixels_per_metre(1.0f);
+  const float page = static_cast<float>(atlas_.page_size());
+  const glm::mat4& bone = job.bone;
+  const glm::vec3& centre = job.centre;
+  const float r = bp.radius * ch.scale;
+  // A leading card's snapshot eye: as far from the part as the camera, on the mean line of sight
+  // ahead.
+  const glm::vec3 eye = job.lead ? centre - glm::length(centre - camera.eye) *
+                                                glm::normalize(glm::mat3(bone) * lead_direction(job, ch, time))
+                                 : camera.eye;
+  SnapshotCamera cam = make_snapshot_camera(centre, eye, camera.up, r,
+                                            config_.snapshot_distance > 0 ? config_.snapshot_distance * ch.scale : 0.0f,
+                                            config_.perspective_snapshots);
+  if (config_.texel_per_pixel && cam.perspective)
+    cam.half_size = std::max(cam.half_size, half_size_at(win.size, config_.texels_per_pixel, cam.distance, ppm1));
+  // The snapshot's direction, and the line of sight to the part now, which the view test also
+  // follows (the same without a lead).
+  const glm::vec3 vo = cam.vo;
+  const glm::vec3 los = job.lead ? glm::normalize(centre - camera.eye) : cam.vo;
+  if (config_.aligned_snapshots)
+    if (auto a = make_aligned_snapshot_camera(camera, centre, r, win.size, config_.texels_per_pixel)) cam = *a;
+  // The card at snapshot time (the window's plane through its centre), in the bone's palette space.
+  PartCache next = pc;
+  const glm::mat4 inv = glm::inverse(bone);
+  next.centre = glm::vec3(inv * glm::vec4(cam.ta, 1.0f));
+  next.axis_x = glm::vec3(inv * glm::vec4(cam.ho * cam.half_size, 0.0f));
+  next.axis_y = glm::vec3(inv * glm::vec4(cam.uo * cam.half_size, 0.0f));
+  next.normal = glm::vec3(inv * glm::vec4(los, 0.0f));
+  next.card_normal = glm::vec3(inv * glm::vec4(vo, 0.0f));
+  next.half_size = cam.half_size;
+  // The snapshot's eye in the card's frame (units of the half size): carried with the axes.
+  next.snap = config_.parallax_cards && cam.perspective && config_.snapshot_samples <= 1
+                  ? glm::vec4(cam.offset / cam.half_size, cam.distance / cam.half_size, r / cam.half_size)
+                  : glm::vec4(0.0f);
+  next.posture = job.posture;
+  next.fitted = config_.fit_quads_to_coverage;
+  next.rect = glm::vec4(-1, -1, 1, 1);
+  glm::vec4 snap_rect = next.rect;
+  if (config_.tight_quads) {
+    // The part's box (palette space, over all frames).
+    const WindowRects rr = window_rects(cam, win.size, [&](int k) {
+      const glm::vec3 q((k & 1) ? bp.box_max.x : bp.box_min.x, (k & 2) ? bp.box_max.y : bp.box_min.y,
+                        (k & 4) ? bp.box_max.z : bp.box_min.z);
+      return glm::vec3(bone * glm::vec4(q, 1.0f)) - cam.ta;
+    });
+    next.rect = rr.quad;
+    snap_rect = rr.snapshot;
+  }
+  s = snapshot_gpu(job.inst, cam, r, win, page, snap_rect, next.rect, slot, next.fitted,
+                   window_texels_per_pixel(win.size, cam.half_size, job.depth, ppm1));
+  s.part.x = static_cast<float>(p);
+  const PartIndices& pi = m.part_indices(job.slod);
+  const std::size_t prims = m.lods[static_cast<std::size_t>(job.slod)].primitives.size();
+  tris = 0;
+  for (std::size_t k = 0; k < prims; ++k)
+    tris += pi.ranges[k * static_cast<std::size_t>(parts_) + static_cast<std::size_t>(p)].count / 3;
+  return next;
+}
+
+BillboardGpu FramePlanner::part_billboard(const PartCache& c, const glm::mat4& bone, const glm::mat3& t) const {
+  const AtlasWindow& win = c.window;
+  const float page = static_cast<float>(atlas_.page_size());
+  return BillboardGpu{glm::vec4(glm::vec3(bone * glm::vec4(c.centre, 1.0f)), c.half_size),
+                      glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
+                      glm::vec4(static_cast<float>(win.page), static_cast<float>(coverage_slot_of(win)), c.fitted ? 1.0f : 0.0f, 0.0f),
+                      c.rect,
+                      glm::vec4(t * glm::vec3(bone * glm::vec4(c.axis_x, 0.0f)), 1.0f),
+                      glm::vec4(t * glm::vec3(bone * glm::vec4(c.axis_y, 0.0f)), 1.0f),
+                      c.snap};
+}
+
 bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedClip& bc, int f0, int f1, float blend,
                               const InstanceGpu& inst, const glm::vec3& ta, float radius, float pixels,
                               const SceneCamera& camera, float time, FrameStats& st) {
@@ -693,7 +802,6 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
   PartCache* pcs = &part_cache_[i * parts_];
   const glm::vec3 fwd = glm::normalize(camera.target - camera.eye);
   const float ppm1 = camera.pixels_per_metre(1.0f);
-  const float page = static_cast<float>(atlas_.page_size());
   const auto pal = m.baked_palette();
   // Character placement x the part's bone matrix now (model space -> world).
   const float sc = ch.scale;
@@ -784,25 +892,6 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
     cs.eye_time = time;
     cs.eye_valid = true;
   }
-  // The direction card p's snapshot is taken along (palette space): the mean of the part's line
-  // of sight over the coming frames (the clip played on, the eye carried on at its velocity in the
-  // character's frame) until it has turned by the view threshold from where it is now, the time a
-  // card taken now would last.
-  const auto ahead = [&](int p) {
-    const glm::vec3 c = parts[p].centre;
-    glm::vec3 los0(0.0f), sum(0.0f);
-    for (int k = 0; k <= kLeadSteps; ++k) {
-      const float dt = static_cast<float>(k) * kLeadStep;
-      const BakedFrames g = baked_frames(m, ch, time + dt);
-      const glm::mat4 pm = palette_matrix(pal, np, bc, g.f0, g.f1, g.blend, parts[p].bone);
-      const glm::vec3 e = eye_char + eye_vel * dt;
-      const glm::vec3 los = glm::normalize(glm::inverse(glm::mat3(pm)) * (glm::vec3(pm * glm::vec4(c, 1.0f)) - e));
-      if (k == 0) los0 = los;
-      else if (glm::dot(los, los0) < cthr) break;
-      sum += los;
-    }
-    return glm::normalize(sum);
-  };
   for (int p = 0; p < count; ++p) {
     if (must[p]) continue;
     if (cc.posture_test && posture_changed(pcs[p].posture, posture, cc.posture_threshold * w)) {
@@ -831,80 +920,25 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
   const int slod = config_.snapshot_lod_from_screen
                        ? std::min(lod_for(pixels, camera.height), lods - 1)
                        : lod_for(static_cast<float>(config_.windows.size[pcs[0].window.size_class]), camera.height);
-  const PartIndices& pi = m.part_indices(slod);
-  const std::size_t prims = m.lods[slod].primitives.size();
+  const int clip = static_cast<int>(&bc - m.baked_clips().data());
   bool refreshed = false;
   for (int p = 0; p < count; ++p) {
-    const BodyPart& bp = parts[p];
     PartCache& pc = pcs[p];
     const AtlasWindow& win = pc.window;
-    const int slot = coverage_slot_of(win);
-    auto card = [&](const PartCache& c, const glm::mat3& t) {
-      return BillboardGpu{glm::vec4(glm::vec3(bone[p] * glm::vec4(c.centre, 1.0f)), c.half_size),
-                          glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
-                          glm::vec4(static_cast<float>(win.page), static_cast<float>(slot), c.fitted ? 1.0f : 0.0f, 0.0f),
-                          c.rect,
-                          glm::vec4(t * glm::vec3(bone[p] * glm::vec4(c.axis_x, 0.0f)), 1.0f),
-                          glm::vec4(t * glm::vec3(bone[p] * glm::vec4(c.axis_y, 0.0f)), 1.0f),
-                          c.snap};
-    };
     if (due[p]) {
-      const float r = bp.radius * sc;
-      // A leading card's snapshot eye: as far from the part as the camera, on the mean line of
-      // sight ahead.
-      const glm::vec3 eye = lead ? centre[p] - glm::length(centre[p] - camera.eye) *
-                                                  glm::normalize(glm::mat3(bone[p]) * ahead(p))
-                                 : camera.eye;
-      SnapshotCamera cam = make_snapshot_camera(centre[p], eye, camera.up, r,
-                                                config_.snapshot_distance > 0 ? config_.snapshot_distance * sc : 0.0f,
-                                                config_.perspective_snapshots);
-      if (config_.texel_per_pixel && cam.perspective)
-        cam.half_size = std::max(cam.half_size, half_size_at(win.size, config_.texels_per_pixel, cam.distance, ppm1));
-      // The snapshot's direction, and the line of sight to the part now, which the view test
-      // also follows (the same without a lead).
-      const glm::vec3 vo = cam.vo;
-      const glm::vec3 los = lead ? glm::normalize(centre[p] - camera.eye) : cam.vo;
-      if (config_.aligned_snapshots)
-        if (auto a = make_aligned_snapshot_camera(camera, centre[p], r, win.size, config_.texels_per_pixel)) cam = *a;
-      // The card at snapshot time (the window's plane through its centre), in the bone's palette
-      // space.
-      PartCache next = pc;
-      const glm::mat4 inv = glm::inverse(bone[p]);
-      next.centre = glm::vec3(inv * glm::vec4(cam.ta, 1.0f));
-      next.axis_x = glm::vec3(inv * glm::vec4(cam.ho * cam.half_size, 0.0f));
-      next.axis_y = glm::vec3(inv * glm::vec4(cam.uo * cam.half_size, 0.0f));
-      next.normal = glm::vec3(inv * glm::vec4(los, 0.0f));
-      next.card_normal = glm::vec3(inv * glm::vec4(vo, 0.0f));
-      next.half_size = cam.half_size;
-      // The snapshot's eye in the card's frame (units of the half size): carried with the axes.
-      next.snap = config_.parallax_cards && cam.perspective && config_.snapshot_samples <= 1
-                      ? glm::vec4(cam.offset / cam.half_size, cam.distance / cam.half_size, r / cam.half_size)
-                      : glm::vec4(0.0f);
-      next.posture = posture;
-      next.fitted = config_.fit_quads_to_coverage;
-      next.rect = glm::vec4(-1, -1, 1, 1);
-      glm::vec4 snap_rect = next.rect;
-      if (config_.tight_quads) {
-        // The part's box (palette space, over all frames).
-        const WindowRects rr = window_rects(cam, win.size, [&](int k) {
-          const glm::vec3 q((k & 1) ? bp.box_max.x : bp.box_min.x, (k & 2) ? bp.box_max.y : bp.box_min.y,
-                            (k & 4) ? bp.box_max.z : bp.box_min.z);
-          return glm::vec3(bone[p] * glm::vec4(q, 1.0f)) - cam.ta;
-        });
-        next.rect = rr.quad;
-        snap_rect = rr.snapshot;
-      }
-      SnapshotGpu s = snapshot_gpu(inst, cam, r, win, page, snap_rect, next.rect, slot, next.fitted,
-                                   window_texels_per_pixel(win.size, cam.half_size, depth[p], ppm1));
-      s.part.x = static_cast<float>(p);
-      std::size_t tris = 0;
-      for (std::size_t k = 0; k < prims; ++k) tris += pi.ranges[k * parts_ + p].count / 3;
+      const PartJob job{static_cast<std::uint32_t>(i), p, bone[p], centre[p], depth[p], inst, posture, slod, clip,
+                        lead, eye_char, eye_vel, cthr};
       if (budget && !must[p]) {
+        // Stale: its old card is drawn; the budget may reach it in end_frame, which works its
+        // card out then (most stale cards wait).
         pending_parts_.push_back(PendingPart{staleness[p], static_cast<std::uint32_t>(i * parts_ + p),
-                                             static_cast<std::uint32_t>(plan_.billboards.size()), slod, next, s,
-                                             card(next, glm::mat3(1.0f)), tris});
+                                             static_cast<std::uint32_t>(plan_.billboards.size()),
+                                             static_cast<std::uint32_t>(part_jobs_.size())});
+        part_jobs_.push_back(job);
       } else {
-        pc = next;
+        std::size_t tris = 0;
+        SnapshotGpu s;
+        pc = part_card(job, ch, camera, time, s, tris);
         turn[p] = glm::mat3(1.0f);
         plan_.snapshots[slod].push_back(s);
         ++st.part_snapshots;
@@ -913,7 +947,7 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
         refreshed = true;
       }
     }
-    plan_.billboards.push_back(card(pc, turn[p]));
+    plan_.billboards.push_back(part_billboard(pc, bone[p], turn[p]));
     ++st.impostors_per_window[win.size_class];
     ++st.part_cards;
     st.quad_texels += rect_texels(pc.rect, win.size);

@@ -355,15 +355,26 @@ class FramePlanner {
     float staleness = 0.0f;  // > 1: how far past its thresholds
     std::uint32_t order = 0, billboard = 0;  // the character's index in the crowd; in plan_.billboards
   };
-  // The same for one part card.
+  // What a part card's refresh needs of its character's frame: worked out at once, or, for a
+  // stale card waiting on the refresh budget, in end_frame if the budget reaches it.
+  struct PartJob {
+    std::uint32_t character = 0;
+    int part = 0;
+    glm::mat4 bone{1.0f};  // placement x the part's bone matrix now
+    glm::vec3 centre{0.0f};
+    float depth = 0.0f;  // of the centre along the view direction
+    InstanceGpu inst;
+    std::array<float, 4> posture{};
+    int slod = 0, clip = 0;
+    bool lead = false;  // ImpostorConfig::lead_cards: the eye in the character's frame and its velocity
+    glm::vec3 eye_char{0.0f}, eye_vel{0.0f};
+    float cos_view = 1.0f;  // of the character's (weighted) view threshold
+  };
+  // A stale part card's refresh, held back until the frame's budget is shared out.
   struct PendingPart {
     float staleness = 0.0f;
     std::uint32_t order = 0, billboard = 0;  // the card's index in part_cache_; in plan_.billboards
-    int lod = 0;
-    PartCache next;
-    SnapshotGpu snapshot;
-    BillboardGpu card;
-    std::size_t triangles = 0;
+    std::uint32_t job = 0;                   // in part_jobs_
   };
   // What plan_character needs of the frame (the same for every character).
   struct FrameSetup {
@@ -431,6 +442,7 @@ class FramePlanner {
   std::vector<Chunk> chunks_;
   std::vector<PendingRefresh> pending_;
   std::vector<PendingPart> pending_parts_;
+  std::vector<PartJob> part_jobs_;
   std::vector<std::uint8_t> refreshed_;  // part cards: characters with a card refreshed this frame
   int budget_left_ = 0;  // CacheConfig::refresh_budget left in the frame being planned
   AtlasAllocator atlas_;
@@ -439,6 +451,11 @@ class FramePlanner {
   int parts_ = 1;                      // parts per character (1: ordinary impostors)
   // Plans character i's part cards (windows, cache tests, snapshots, cards); false when the
   // atlas is full (the character is then drawn as geometry).
+  // A part card's new card (and its snapshot, and the snapshot's triangles).
+  PartCache part_card(const PartJob& job, const Character& ch, const SceneCamera& camera, float time, SnapshotGpu& s,
+                      std::size_t& tris) const;
+  glm::vec3 lead_direction(const PartJob& job, const Character& ch, float time) const;
+  BillboardGpu part_billboard(const PartCache& c, const glm::mat4& bone, const glm::mat3& turn) const;
   bool plan_parts(std::size_t i, const Character& ch, const BakedClip& bc, int f0, int f1, float blend,
                   const InstanceGpu& inst, const glm::vec3& ta, float radius, float pixels, const SceneCamera& camera,
                   float time, FrameStats& st);
