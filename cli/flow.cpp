@@ -497,7 +497,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "Most threads planning each frame of crowds of 512 and more, one per 512 characters at most (0: one per hardware thread; the plan is the same)")
       ->capture_default_str();
   cmd->add_flag("--gpu-stages", a->gpu_stages,
-                "Also time the renderer's stages on the GPU (snapshots, coverage, geometry, impostors; gpu_ms_stages in the report)");
+                "Also time the renderer's stages on the GPU (snapshots, coverage, geometry, impostors; gpu_ms_stages in the report; on llvmpipe the timestamps serialise the stages and slow the frame)");
   cmd->add_option("--refresh-budget", a->refresh_budget,
                   "At most N impostors refreshed per frame, the stalest first (0: no limit; the paper's future work; "
                   "with several models, split between them, at least one each)")
