@@ -981,6 +981,52 @@ TEST(BodyParts, RefreshBudgetCountsCards) {
   EXPECT_EQ(planner.plan(crowd, cam, 0.25f, RenderMode::kImpostor).stats.part_snapshots, 5);
 }
 
+// A stale part card waits for the budget with only its job; end_frame works its card out if the
+// budget takes it. With a budget above the demand every stale card is taken, so the cards drawn
+// and the snapshots taken are those of the same planner without a budget, which works each card
+// out at once (leading cards too: their lead is worked out from the job's eye and velocity).
+TEST(BodyParts, DeferredCardsAreTheCardsWorkedOutAtOnce) {
+  Model m = pole_model();
+  Crowd crowd(m);
+  for (int i = 0; i < 12; ++i)
+    crowd.add(Character{glm::vec3(1.5f * static_cast<float>(i % 4) - 2.25f, 0, -1.5f * static_cast<float>(i / 4)),
+                        0.3f * static_cast<float>(i), 1.0f, 0, 0.05f * static_cast<float>(i), 1.0f + 0.1f * i});
+  ImpostorConfig cfg;
+  cfg.part_cards = true;
+  cfg.cache.posture_threshold = 0.05f;
+  cfg.cache.view_threshold_deg = 2.0f;
+  FramePlanner now(m, cfg);
+  cfg.cache.refresh_budget = 10000;
+  FramePlanner deferred(m, cfg);
+  // Snapshots by bytes, in one order (the deferred ones go to the end of their level's list).
+  auto sorted = [](std::vector<SnapshotGpu> v) {
+    std::sort(v.begin(), v.end(), [](const SnapshotGpu& a, const SnapshotGpu& b) { return std::memcmp(&a, &b, sizeof a) < 0; });
+    return v;
+  };
+  int stale = 0;
+  for (int f = 0; f < 20; ++f) {
+    SCOPED_TRACE(testing::Message() << "frame " << f);
+    SceneCamera cam = facing_camera(12.0f);
+    cam.eye.x = 0.3f * static_cast<float>(f);  // the camera moves sideways: view refreshes too
+    const float t = static_cast<float>(f) / 30.0f;
+    const FramePlan& a = now.plan(crowd, cam, t, RenderMode::kImpostor);
+    const FramePlan& b = deferred.plan(crowd, cam, t, RenderMode::kImpostor);
+    ASSERT_EQ(a.billboards.size(), b.billboards.size());
+    EXPECT_EQ(std::memcmp(a.billboards.data(), b.billboards.data(), a.billboards.size() * sizeof(BillboardGpu)), 0);
+    ASSERT_EQ(a.snapshots.size(), b.snapshots.size());
+    for (std::size_t l = 0; l < a.snapshots.size(); ++l) {
+      const auto sa = sorted(a.snapshots[l]), sb = sorted(b.snapshots[l]);
+      ASSERT_EQ(sa.size(), sb.size());
+      EXPECT_EQ(std::memcmp(sa.data(), sb.data(), sa.size() * sizeof(SnapshotGpu)), 0);
+    }
+    EXPECT_EQ(a.stats.part_snapshots, b.stats.part_snapshots);
+    EXPECT_EQ(a.stats.snapshots, b.stats.snapshots);
+    EXPECT_EQ(b.stats.deferred_refreshes, 0);
+    if (f > 0) stale += b.stats.part_snapshots;
+  }
+  EXPECT_GT(stale, 100);  // the deferred path was taken (326 stale cards refreshed after the first frame)
+}
+
 TEST(BodyParts, CesiumManHasLimbParts) {
   std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data absent: " << path;

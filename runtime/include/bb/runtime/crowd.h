@@ -449,13 +449,13 @@ class FramePlanner {
   std::vector<CacheState> cache_;
   std::vector<PartCache> part_cache_;  // [character * parts + part] when part cards are on
   int parts_ = 1;                      // parts per character (1: ordinary impostors)
-  // Plans character i's part cards (windows, cache tests, snapshots, cards); false when the
-  // atlas is full (the character is then drawn as geometry).
   // A part card's new card (and its snapshot, and the snapshot's triangles).
   PartCache part_card(const PartJob& job, const Character& ch, const SceneCamera& camera, float time, SnapshotGpu& s,
                       std::size_t& tris) const;
   glm::vec3 lead_direction(const PartJob& job, const Character& ch, float time) const;
   BillboardGpu part_billboard(const PartCache& c, const glm::mat4& bone, const glm::mat3& turn) const;
+  // Plans character i's part cards (windows, cache tests, snapshots, cards); false when the
+  // atlas is full (the character is then drawn as geometry).
   bool plan_parts(std::size_t i, const Character& ch, const BakedClip& bc, int f0, int f1, float blend,
                   const InstanceGpu& inst, const glm::vec3& ta, float radius, float pixels, const SceneCamera& camera,
                   float time, FrameStats& st);
