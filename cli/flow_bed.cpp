@@ -231,12 +231,9 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
       target.bind(true);
       gpu_finish();
       auto t0 = Clock::now();
-      if (nm == 1) {
-        plans[0] = &planners[0]->plan(crowds[0], cam, t, mode);
-      } else {  // the models' large crowds planned in one call on the threads
-        FramePlanner::plan_many(planner_ptrs, crowd_ptrs, cam, t, mode);
-        for (int m = 0; m < nm; ++m) plans[m] = &planners[m]->plan_of_last_frame();
-      }
+      // Every model's crowd planned in one call on the threads (plan()'s plans).
+      FramePlanner::plan_many(planner_ptrs, crowd_ptrs, cam, t, mode);
+      for (int m = 0; m < nm; ++m) plans[m] = &planners[m]->plan_of_last_frame();
       auto t1 = Clock::now();
       if (nm == 1 || draw_options.time_stages) {
         for (int m = 0; m < nm; ++m) renderers[m]->draw(*plans[m], draw_options);

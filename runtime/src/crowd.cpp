@@ -477,27 +477,28 @@ std::size_t FramePlanner::begin_frame(const Crowd& crowd, const SceneCamera& cam
 
   // Frustum planes (world) from the view-projection matrix, for the snapshot sphere.
   const glm::mat4 vp = camera.projection() * camera.view();
-  std::array<glm::vec4, 6>& planes = fr.planes;
+  FrameSetup& fs = fr.setup;
+  std::array<glm::vec4, 6>& planes = fs.planes;
   for (int i = 0; i < 3; ++i) {
     planes[2 * i] = glm::vec4(vp[0][3] + vp[0][i], vp[1][3] + vp[1][i], vp[2][3] + vp[2][i], vp[3][3] + vp[3][i]);
     planes[2 * i + 1] = glm::vec4(vp[0][3] - vp[0][i], vp[1][3] - vp[1][i], vp[2][3] - vp[2][i], vp[3][3] - vp[3][i]);
   }
   for (auto& p : planes) p /= glm::length(glm::vec3(p));
-  camera_axes(camera, fr.cam_right, fr.cam_up, fr.fwd);
-  fr.camera = camera;
-  fr.time = time;
-  fr.mode = mode;
-  fr.ppm1 = camera.pixels_per_metre(1.0f);
-  fr.impostor_mode = mode != RenderMode::kGeometry;
+  camera_axes(camera, fs.cam_right, fs.cam_up, fs.fwd);
+  fs.camera = camera;
+  fs.time = time;
+  fs.mode = mode;
+  fs.ppm1 = camera.pixels_per_metre(1.0f);
+  fs.impostor_mode = mode != RenderMode::kGeometry;
   const CacheConfig& cc = config_.cache;
-  fr.cos_view = std::cos(glm::radians(cc.view_threshold_deg));
-  fr.switch_px = static_cast<float>(config_.windows.size[0]) * config_.geometry_switch;
-  fr.page = static_cast<float>(atlas_.page_size());
+  fs.cos_view = std::cos(glm::radians(cc.view_threshold_deg));
+  fs.switch_px = static_cast<float>(config_.windows.size[0]) * config_.geometry_switch;
+  fs.page = static_cast<float>(atlas_.page_size());
   // LOD of each window class (section 4.3: the snapshot uses the level that matches the window).
-  fr.window_lod = {};
-  for (int w = 0; w < config_.windows.count; ++w) fr.window_lod[w] = lod_for(static_cast<float>(config_.windows.size[w]), camera.height);
+  fs.window_lod = {};
+  for (int w = 0; w < config_.windows.count; ++w) fs.window_lod[w] = lod_for(static_cast<float>(config_.windows.size[w]), camera.height);
 
-  fr.budget = cc.refresh_budget > 0 && parts_ == 1;
+  fs.budget = cc.refresh_budget > 0 && parts_ == 1;
   budget_left_ = cc.refresh_budget;
   pending_.clear();
   pending_parts_.clear();
@@ -517,12 +518,6 @@ std::size_t FramePlanner::begin_frame(const Crowd& crowd, const SceneCamera& cam
   return fr.chunks;
 }
 
-FramePlanner::FrameSetup FramePlanner::frame_setup() const {
-  const Frame& fr = frame_;
-  return FrameSetup{fr.camera, fr.planes, fr.cam_right, fr.cam_up, fr.fwd, fr.ppm1, fr.cos_view, fr.switch_px,
-                    fr.page, fr.time, fr.impostor_mode, fr.budget, fr.mode, fr.window_lod};
-}
-
 unsigned FramePlanner::max_useful_threads(std::size_t characters) {
   // As many threads as the crowd keeps busy: a wake-up costs more than a few hundred characters.
   return static_cast<unsigned>(std::clamp<std::size_t>(characters / kCharactersPerThread, 1, planner_threads()));
@@ -532,7 +527,7 @@ void FramePlanner::plan_chunk(std::size_t c) {
   const Frame& fr = frame_;
   const Crowd& crowd = *fr.crowd;
   const std::size_t n = crowd.size();
-  const FrameSetup fs = frame_setup();
+  const FrameSetup& fs = fr.setup;
   Chunk& k = chunks_[c];
   k.clear(model_->lods.size());
   const Out o{&k.geometry, &k.snapshots, &k.billboards, &k.pending, &k.st, &k.budget_used, &k.deferred};
@@ -589,7 +584,7 @@ const FramePlan& FramePlanner::end_frame() {
   Frame& fr = frame_;
   const Crowd& crowd = *fr.crowd;
   const std::size_t n = crowd.size();
-  const FrameSetup fs = frame_setup();
+  const FrameSetup& fs = fr.setup;
   FrameStats& st = fr.st;
   int& budget_used = fr.budget_used;
   const Out serial{&plan_.geometry, &plan_.snapshots, &plan_.billboards, &pending_, &st, &budget_used, nullptr};
@@ -661,7 +656,7 @@ const FramePlan& FramePlanner::end_frame() {
       PartCache& pc = part_cache_[r.order];
       SnapshotGpu snap;
       std::size_t tris = 0;
-      const PartCache next = part_card(job, crowd[job.character], fr.camera, fr.time, snap, tris);
+      const PartCache next = part_card(job, crowd[job.character], fs.camera, fs.time, snap, tris);
       st.quad_texels += rect_texels(next.rect, next.window.size) - rect_texels(pc.rect, pc.window.size);
       pc = next;
       plan_.billboards[r.billboard] = part_billboard(next, job.bone, glm::mat3(1.0f));

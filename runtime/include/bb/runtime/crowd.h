@@ -376,15 +376,15 @@ class FramePlanner {
     std::uint32_t order = 0, billboard = 0;  // the card's index in part_cache_; in plan_.billboards
     std::uint32_t job = 0;                   // in part_jobs_
   };
-  // What plan_character needs of the frame (the same for every character).
+  // What plan_character needs of the frame (the same for every character), set by begin_frame.
   struct FrameSetup {
-    const SceneCamera& camera;
-    const std::array<glm::vec4, 6>& planes;  // frustum, world
-    const glm::vec3 &cam_right, &cam_up, &fwd;
-    float ppm1, cos_view, switch_px, page, time;
-    bool impostor_mode, budget;
-    RenderMode mode;
-    const std::array<int, 8>& window_lod;
+    SceneCamera camera;
+    std::array<glm::vec4, 6> planes{};  // frustum, world
+    glm::vec3 cam_right{0.0f}, cam_up{0.0f}, fwd{0.0f};
+    float ppm1 = 0, cos_view = 0, switch_px = 0, page = 0, time = 0;
+    bool impostor_mode = false, budget = false;
+    RenderMode mode = RenderMode::kAuto;
+    std::array<int, 8> window_lod{};  // LOD of each window class
   };
   // Where plan_character writes: the plan's lists, or a chunk's. `deferred` set: characters whose
   // atlas window must be allocated or changed are only listed there (a parallel pass).
@@ -420,21 +420,14 @@ class FramePlanner {
   std::size_t begin_frame(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode);
   void plan_chunk(std::size_t c);
   const FramePlan& end_frame();
-  // The frame being planned (what FrameSetup refers to).
+  // The frame being planned.
   struct Frame {
     const Crowd* crowd = nullptr;
-    SceneCamera camera;
-    std::array<glm::vec4, 6> planes{};  // frustum, world
-    glm::vec3 cam_right{0.0f}, cam_up{0.0f}, fwd{0.0f};
-    float ppm1 = 0, cos_view = 0, switch_px = 0, page = 0, time = 0;
-    bool impostor_mode = false, budget = false;
-    RenderMode mode = RenderMode::kAuto;
-    std::array<int, 8> window_lod{};
+    FrameSetup setup;
     FrameStats st;
     int budget_used = 0;
     std::size_t chunks = 0;
   };
-  FrameSetup frame_setup() const;
   Frame frame_;
   const Model* model_;
   ImpostorConfig config_;
