@@ -14,6 +14,10 @@ namespace bb::runtime {
 
 namespace {
 
+// ImpostorConfig::fit_quads_to_coverage: the shortest life (impostor frames) of the snapshot a new
+// one replaces for the new one to be fitted (FramePlanner::fit_quad).
+constexpr std::uint32_t kFitAfterFrames = 2;
+
 // Tight quads: the 8 corners corner(k) (offsets from the snapshot's centre, world metres) projected
 // on the snapshot plane, in window units. Whole texels and one texel of margin, inside the window:
 // the quad (`quad`). The snapshot clears three texels more (`snapshot`), which the impostor
@@ -378,7 +382,8 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
         next.posture = posture;
         next.half_size = sc.half_size;
         next.aligned = aligned.has_value();
-        next.fitted = config_.fit_quads_to_coverage;
+        next.fitted = fit_quad(cs.valid ? cs.taken : 0, fs.frame);
+        next.taken = fs.frame;
         next.offset = glm::vec2(glm::dot(sc.ta - ta, cam_right), glm::dot(sc.ta - ta, cam_up));
         next.rect = glm::vec4(-1, -1, 1, 1);
         glm::vec4 snap_rect = next.rect;
@@ -490,6 +495,7 @@ std::size_t FramePlanner::begin_frame(const Crowd& crowd, const SceneCamera& cam
   fs.mode = mode;
   fs.ppm1 = camera.pixels_per_metre(1.0f);
   fs.impostor_mode = mode != RenderMode::kGeometry;
+  if (fs.impostor_mode) ++fs.frame;
   const CacheConfig& cc = config_.cache;
   fs.cos_view = std::cos(glm::radians(cc.view_threshold_deg));
   fs.switch_px = static_cast<float>(config_.windows.size[0]) * config_.geometry_switch;
@@ -681,6 +687,15 @@ const FramePlan& FramePlanner::end_frame() {
   return plan_;
 }
 
+// The coverage pass reads each fitted snapshot's texels once (ImpostorConfig::
+// fit_quads_to_coverage), and the smaller quad pays that back only over the frames the snapshot is
+// drawn. A snapshot that replaces one drawn for fewer than kFitAfterFrames frames is likely to be
+// as short-lived (both thresholds 0, a fast-turning camera, a part swinging past its threshold),
+// so its quad stays the planner's box.
+bool FramePlanner::fit_quad(std::uint32_t last, std::uint32_t frame) const {
+  return config_.fit_quads_to_coverage && (last == 0 || frame - last >= kFitAfterFrames);
+}
+
 // The direction card job.part's snapshot is taken along (palette space): the mean of the part's
 // line of sight over the coming frames (the clip played on, the eye carried on at its velocity in
 // the character's frame) until it has turned by the view threshold from where it is now, the time
@@ -749,7 +764,8 @@ FramePlanner::PartCache FramePlanner::part_card(const PartJob& job, const Charac
                   ? glm::vec4(cam.offset / cam.half_size, cam.distance / cam.half_size, r / cam.half_size)
                   : glm::vec4(0.0f);
   next.posture = job.posture;
-  next.fitted = config_.fit_quads_to_coverage;
+  next.fitted = fit_quad(pc.taken, frame_.setup.frame);
+  next.taken = frame_.setup.frame;
   next.rect = glm::vec4(-1, -1, 1, 1);
   glm::vec4 snap_rect = next.rect;
   if (config_.tight_quads) {

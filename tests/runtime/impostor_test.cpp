@@ -654,6 +654,61 @@ Model hinge_model() {
   return m;
 }
 
+// Quads fitted to the coverage (ImpostorConfig::fit_quads_to_coverage) cost a pass over the new
+// snapshot's texels that pays back only in the frames it is drawn again: a snapshot replacing one
+// that lived a single impostor frame keeps the planner's box; one replacing a longer-lived one, or
+// a character's first, is fitted. Geometry frames in between do not count.
+TEST(FramePlanner, ShortLivedSnapshotsKeepThePlannersBox) {
+  Model m = tiny_model();
+  Crowd crowd = standing_row(m, 3, 2.0f);
+  FramePlanner planner(m, view_test_only(8.0f));
+  const SceneCamera cam = facing_camera(30.0f);
+  // The middle character's quad and its snapshot (if one is taken): fitted or not.
+  auto plan = [&](float yaw_deg, RenderMode mode = RenderMode::kImpostor) {
+    crowd[1].yaw = glm::radians(yaw_deg);
+    const FramePlan& p = planner.plan(crowd, cam, 0.0f, mode);
+    if (mode == RenderMode::kGeometry) return std::string("geometry");
+    EXPECT_EQ(p.billboards.size(), 3u);
+    std::string s = p.billboards[1].layer.z > 0.5f ? "fitted" : "box";
+    for (const auto& level : p.snapshots)
+      for (const SnapshotGpu& g : level) {
+        EXPECT_EQ(g.part.z, p.billboards[1].layer.z);  // only the middle one's, once its first is taken
+        s += "+snapshot";
+      }
+    return s;
+  };
+  EXPECT_EQ(plan(0), "fitted+snapshot+snapshot+snapshot");  // the first snapshots: fitted
+  EXPECT_EQ(plan(9), "box+snapshot");    // its last lived one frame
+  EXPECT_EQ(plan(18), "box+snapshot");   // so did this one
+  EXPECT_EQ(plan(18), "box");            // kept: no snapshot
+  EXPECT_EQ(plan(18), "box");
+  EXPECT_EQ(plan(27), "fitted+snapshot");  // the last lived three frames
+  EXPECT_EQ(plan(27, RenderMode::kGeometry), "geometry");
+  EXPECT_EQ(plan(36), "box+snapshot");  // one impostor frame since, whatever the geometry frames
+  // Fitting off: never fitted.
+  planner.config().fit_quads_to_coverage = false;
+  EXPECT_EQ(plan(36), "box");
+  EXPECT_EQ(plan(36), "box");
+  EXPECT_EQ(plan(45), "box+snapshot");
+  // Part cards follow the same rule: a posture threshold of 0 refreshes the bending hinge's cards
+  // every frame (the posture test is the character's).
+  ImpostorConfig cfg;
+  cfg.part_cards = true;
+  cfg.cache.view_test = false;
+  cfg.cache.posture_threshold = 0.0f;
+  Model h = hinge_model();
+  Crowd one(h);
+  one.add(Character{glm::vec3(0, 0, -2), 0.0f, 1.0f, 0, 0.0f, 1.0f});
+  FramePlanner parts(h, cfg);
+  for (int f = 0; f < 4; ++f) {
+    const FramePlan& p = parts.plan(one, cam, 0.1f * static_cast<float>(f), RenderMode::kImpostor);
+    ASSERT_EQ(p.billboards.size(), 2u);
+    EXPECT_EQ(p.stats.part_snapshots, 2) << f;
+    for (const BillboardGpu& b : p.billboards) EXPECT_EQ(b.layer.z, f == 0 ? 1.0f : 0.0f) << f;
+    for (const SnapshotGpu& g : p.snapshots[0]) EXPECT_EQ(g.part.z, f == 0 ? 1.0f : 0.0f) << f;
+  }
+}
+
 TEST(BodyParts, HingeSplitsIntoTwoPartsWithTheirOwnTriangles) {
   Model m = hinge_model();
   const auto parts = m.body_parts();

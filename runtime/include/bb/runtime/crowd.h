@@ -109,8 +109,12 @@ struct ImpostorConfig {
   // loose: a box's picture is wider than the limb in it. One quad still, so no extra triangles;
   // FrameStats::quad_texels still counts the planner's quads. Flow test bed (llvmpipe, alternating
   // pairs): impostor frame time -3 % at 8 degrees and -16 % at 17 on our humans, -16 % on the Fox
-  // (2.2x -> 2.7x at 8 degrees), +7 % when every impostor is refreshed (the pass reads every texel
-  // of the new snapshots' quads); same frames to one level.
+  // (2.2x -> 2.7x at 8 degrees); same frames to one level. The pass reads every texel of the new
+  // snapshots' quads, which pays back only over the frames a snapshot is drawn again, so a snapshot
+  // replacing one that lived a single impostor frame keeps the box (FramePlanner::fit_quad). Every
+  // impostor refreshed every frame, 20 humans: 1.67-1.74x -> 1.81-1.82x the geometry's speed at 4x
+  // MSAA, 1.32-1.43 -> 1.18-1.19 times its frame time at one sample; part cards at 8 degrees draw
+  // 1.8 % more quad texels (within the timing noise).
   bool fit_quads_to_coverage = true;
   // Samples per texel of the snapshots (1 or 4). 4: drawn multisampled into a scratch page and
   // resolved into the atlas, so alpha holds each texel's coverage as the geometry's multisampled
@@ -328,6 +332,7 @@ class FramePlanner {
     glm::vec2 offset{0.0f};
     bool aligned = false;
     bool fitted = false;  // its quad is fitted to the coverage (found with the snapshot)
+    std::uint32_t taken = 0;  // impostor frame (FrameSetup::frame) the last snapshot was taken in
     glm::vec4 rect{-1, -1, 1, 1};  // part of the window the last snapshot used
     AtlasWindow window;
     bool valid = false;
@@ -348,6 +353,7 @@ class FramePlanner {
     glm::vec4 rect{-1, -1, 1, 1};
     AtlasWindow window;
     bool fitted = false;
+    std::uint32_t taken = 0;  // as CacheState::taken
   };
   // A stale impostor's refresh, held back until the frame's budget is shared out.
   // (end_frame works out the refresh of those the budget reaches.)
@@ -384,6 +390,7 @@ class FramePlanner {
     float ppm1 = 0, cos_view = 0, switch_px = 0, page = 0, time = 0;
     bool impostor_mode = false, budget = false;
     RenderMode mode = RenderMode::kAuto;
+    std::uint32_t frame = 0;  // impostor frames planned so far, this one included
     std::array<int, 8> window_lod{};  // LOD of each window class
   };
   // Where plan_character writes: the plan's lists, or a chunk's. `deferred` set: characters whose
@@ -446,6 +453,9 @@ class FramePlanner {
   PartCache part_card(const PartJob& job, const Character& ch, const SceneCamera& camera, float time, SnapshotGpu& s,
                       std::size_t& tris) const;
   glm::vec3 lead_direction(const PartJob& job, const Character& ch, float time) const;
+  // Whether a snapshot taken in impostor frame `frame` gets its quad fitted to the coverage, the
+  // snapshot it replaces having been taken in frame `last` (0: none).
+  bool fit_quad(std::uint32_t last, std::uint32_t frame) const;
   BillboardGpu part_billboard(const PartCache& c, const glm::mat4& bone, const glm::mat3& turn) const;
   // Plans character i's part cards (windows, cache tests, snapshots, cards); false when the
   // atlas is full (the character is then drawn as geometry).
