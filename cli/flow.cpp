@@ -70,6 +70,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["snapshot_grid"] = s.aligned_snapshots ? "pixels" : "free";
   j["snapshot_scale"] = s.exact_scale ? "exact" : "fill";
   j["snapshot_samples"] = s.snapshot_samples;
+  j["impostor_taps"] = s.snapshot_samples > 1 ? 1 : s.impostor_taps;
   j["quad_fit"] = s.fit_quads ? "coverage" : "boxes";
   if (s.hold_poses) j["hold_poses"] = true;
   if (s.refresh_budget > 0) {
@@ -154,8 +155,8 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (!a.sweep.empty() && a.mode != "both") return fail("--sweep needs --mode both");
   if (!a.models.empty() && a.variants >= 0) return fail("--variants: only for the built-in body (without --model)");
   if (a.impostor_edges != "samples" && a.impostor_edges != "coverage" && a.impostor_edges != "test" &&
-      a.impostor_edges != "blend" && a.impostor_edges != "auto")
-    return fail("--impostor-edges: expected auto, samples, coverage, test or blend (got \"" + a.impostor_edges + "\")");
+      a.impostor_edges != "blend" && a.impostor_edges != "centre" && a.impostor_edges != "auto")
+    return fail("--impostor-edges: expected auto, blend, samples, coverage, test or centre (got \"" + a.impostor_edges + "\")");
   if (a.snapshot_lod != "screen" && a.snapshot_lod != "window")
     return fail("--snapshot-lod: expected screen or window (got \"" + a.snapshot_lod + "\")");
   if (a.snapshot_camera != "perspective" && a.snapshot_camera != "orthographic")
@@ -194,6 +195,10 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (a.snapshot_samples != 1 && a.snapshot_samples != 4)
     return fail("--snapshot-samples: expected 1 or 4 (got " + std::to_string(a.snapshot_samples) + ")");
   s.snapshot_samples = a.snapshot_samples;
+  if (a.impostor_taps != "auto" && a.impostor_taps != "1" && a.impostor_taps != "4")
+    return fail("--impostor-taps: expected auto, 1 or 4 (got \"" + a.impostor_taps + "\")");
+  // auto: as many as the scene's samples (ImpostorConfig::impostor_taps): one where --msaa 1.
+  s.impostor_taps = a.impostor_taps == "1" || (a.impostor_taps == "auto" && a.msaa == 1) ? 1 : 4;
   if (a.quad_fit != "boxes" && a.quad_fit != "coverage")
     return fail("--quad-fit: expected boxes or coverage (got \"" + a.quad_fit + "\")");
   s.fit_quads = a.quad_fit == "coverage";
@@ -459,7 +464,7 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--texels-per-pixel", a->texels_per_pixel, "Impostor window texels per screen pixel")
       ->capture_default_str()->check(CLI::Range(0.25, 4.0));
   cmd->add_option("--impostor-edges", a->impostor_edges,
-                  "Impostor edges: blend (sorted, soft), samples (coverage per sample), coverage (alpha to coverage), test (alpha test) or auto (blend)")
+                  "Impostor edges: blend (sorted, soft), samples (coverage per sample), coverage (alpha to coverage), test (alpha test), centre (one tap at the pixel centre, alpha test: with --snapshot-grid pixels a fresh impostor is the geometry's single-sampled pixels) or auto (blend)")
       ->capture_default_str();
   cmd->add_option("--snapshot-lod", a->snapshot_lod,
                   "Snapshot mesh LOD: screen (what geometry would draw) or window (matches the window size)")
@@ -488,7 +493,10 @@ void add_flow_command(CLI::App& app, int* status) {
                   "Snapshot size: fill (the character fills its power-of-two window: 1-2x the texels per pixel asked, section 4.3), exact (the texels per pixel asked, in part of the window: less to draw per refresh) or auto (exact for whole impostors, fill for part cards)")
       ->capture_default_str();
   cmd->add_option("--snapshot-samples", a->snapshot_samples,
-                  "Samples per snapshot texel (4: multisampled like the scene, one tap per pixel; 1: four taps)")
+                  "Samples per snapshot texel (4: multisampled like the scene, one tap per pixel; 1: --impostor-taps)")
+      ->capture_default_str();
+  cmd->add_option("--impostor-taps", a->impostor_taps,
+                  "Taps per pixel of the impostor shader on single-sampled snapshots: 4 (at the 4x sample pattern: a multisampled pixel's coverage), 1 (one bilinear tap: faster, for single-sampled scenes) or auto (1 where --msaa 1, else 4)")
       ->capture_default_str();
   cmd->add_option("--quad-fit", a->quad_fit,
                   "Impostor quads: boxes (the projected pose and part boxes) or coverage (shrunk on the GPU to the snapshot's covered texels)")

@@ -63,6 +63,7 @@ struct FlowSettings {
   bool aligned_snapshots = false;           // ImpostorConfig::aligned_snapshots (texels on pixels)
   bool exact_scale = false;                 // ImpostorConfig::texel_per_pixel (the asked texels per pixel, not the window's)
   int snapshot_samples = 1;                 // ImpostorConfig::snapshot_samples
+  int impostor_taps = 4;                    // ImpostorConfig::impostor_taps
   bool fit_quads = true;                    // ImpostorConfig::fit_quads_to_coverage
   bool time_stages = false;                 // GPU timestamps between the renderer's stages (gpu_ms_stages)
   unsigned planner_threads = 0;             // ImpostorConfig::planner_threads (0: every hardware thread)
@@ -153,6 +154,7 @@ struct FlowArgs {
   std::string snapshot_grid = "free";
   std::string snapshot_scale = "auto";
   int snapshot_samples = 1;
+  std::string impostor_taps = "auto";
   std::string quad_fit = "coverage";
   bool gpu_stages = false;
   int planner_threads = 0;

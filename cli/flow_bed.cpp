@@ -101,6 +101,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   config.aligned_snapshots = s.aligned_snapshots;
   config.texel_per_pixel = s.exact_scale;
   config.snapshot_samples = s.snapshot_samples;
+  config.impostor_taps = s.impostor_taps;
   config.fit_quads_to_coverage = s.fit_quads;
   config.planner_threads = s.planner_threads;
   DrawOptions draw_options;
@@ -108,6 +109,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   draw_options.edges = s.impostor_edges == "coverage"  ? ImpostorEdges::kAlphaToCoverage
                        : s.impostor_edges == "test"    ? ImpostorEdges::kAlphaTest
                        : s.impostor_edges == "samples" ? ImpostorEdges::kSamples
+                       : s.impostor_edges == "centre"  ? ImpostorEdges::kCentre
                                                        : ImpostorEdges::kBlend;
   // One renderer, planner and crowd per model; human i is of model i % models.size().
   std::vector<std::unique_ptr<Renderer>> renderers;

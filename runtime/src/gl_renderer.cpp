@@ -929,7 +929,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   }
   if (d.relight)  // impostors lit as drawn
     for (std::string* src : {&bvs, &bfs}) *src = with_define(*src, "BB_RELIGHT");
-  bfs = with_define(bfs, "BB_TAPS", d.snapshot_samples > 1 ? 1 : 4);
+  bfs = with_define(bfs, "BB_TAPS", d.snapshot_samples > 1 || config.impostor_taps <= 1 ? 1 : 4);
   for (int mode = 0; mode < static_cast<int>(d.bb.size()); ++mode) {
     auto pb = program(bvs, mode == 3 ? with_define(bfs, "BB_PER_SAMPLE") : with_define(bfs, "BB_EDGES", mode),
                       (std::string("impostor shader (edges ") + std::to_string(mode) + ")").c_str());

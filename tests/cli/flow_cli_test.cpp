@@ -196,6 +196,37 @@ TEST(FlowCli, ExactSnapshotsCopyTheGeometryFrame) {
   EXPECT_GT(je["psnr_db"].get<double>(), jf["psnr_db"].get<double>() + 10.0);
 }
 
+// A single-sampled scene (--msaa 1) has no coverage in its pixels for the impostor shader's four
+// taps to match: --impostor-taps auto takes one there. With texels on pixels and every impostor
+// refreshed, one tap at each pixel's centre reads the texel the geometry drew there: the frame is
+// the geometry's; four taps at the 4x pattern blur its edges. The centre edge mode (one tap, alpha
+// test) gives the same.
+TEST(FlowCli, OneTapCopiesASingleSampledScene) {
+  std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
+  fs::path d = fs::temp_directory_path() / "bb_flow_cli_test_taps";
+  const std::string args = "flow --model " + model + " --frames 4 --size 640x512 --msaa 1 --posture 0 --view 0 " +
+                           "--snapshot-grid pixels --json -o " + d.string();
+  Out one = run(args);
+  if (one.text.find("EGL") != std::string::npos && one.status != 0) GTEST_SKIP() << "no headless OpenGL: " << one.text;
+  ASSERT_EQ(one.status, 0) << one.text;
+  Out four = run(args + " --impostor-taps 4");
+  ASSERT_EQ(four.status, 0) << four.text;
+  Out centre = run(args + " --impostor-edges centre");
+  ASSERT_EQ(centre.status, 0) << centre.text;
+  auto j1 = nlohmann::json::parse(last_json_line(one.text));
+  auto j4 = nlohmann::json::parse(last_json_line(four.text));
+  auto jc = nlohmann::json::parse(last_json_line(centre.text));
+  std::printf("one sample, texels on pixels: one tap %.2f dB, four taps %.2f dB, centre %.2f dB\n",
+              j1["psnr_db"].get<double>(), j4["psnr_db"].get<double>(), jc["psnr_db"].get<double>());
+  EXPECT_EQ(j1["impostor_taps"], 1);
+  EXPECT_EQ(j4["impostor_taps"], 4);
+  EXPECT_DOUBLE_EQ(j1["refresh_fraction"].get<double>(), 1.0);
+  EXPECT_GT(j1["psnr_db"].get<double>(), 40.0);
+  EXPECT_GT(jc["psnr_db"].get<double>(), 40.0);
+  EXPECT_LT(j4["psnr_db"].get<double>(), j1["psnr_db"].get<double>() - 8.0);
+}
+
 // Impostor frames hold impostors only. With blended edges (the default) every sample of a pixel
 // gets the same colour, so the impostor path draws into a single-sampled target
 // (runtime::impostor_target_samples) and its frames are the ones a multisampled target gives:
@@ -282,7 +313,7 @@ TEST(FlowCli, BadFlagsAreErrors) {
                            "flow --sweep size", "flow --model /nonexistent.glb --frames 1",
                            "flow --impostor-edges soft", "flow --snapshot-lod best", "flow --snapshot-camera fisheye",
                            "flow --refresh-budget -1", "flow --limb-cards round", "flow --snapshot-grid texels",
-                           "flow --snapshot-samples 3", "flow --quad-fit hull", "flow --planner-threads -1",
+                           "flow --snapshot-samples 3", "flow --impostor-taps 2", "flow --quad-fit hull", "flow --planner-threads -1",
                            "flow --card-depth maybe", "flow --card-lead maybe", "flow --screen-weighting 0",
                            "flow --screen-weighting tall", "flow --snapshot-scale half", "flow --impostor-target msaa",
                            "flow --scaling-frames 0", "flow --scaling --scaling-humans 20,0",
