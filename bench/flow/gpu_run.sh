@@ -129,6 +129,21 @@ set_s17() {
   flow sweep_posture $C4 --frames 60 --sweep posture
   flow scaling_dw $C4 --frames 2 --distance-weighting --scaling --scaling-humans 1000,10000 --scaling-frames 8
 }
+# Nineteenth session (no GPU then): the worst case and the view targets at one sample (one tap per
+# pixel, --impostor-taps auto) and at four, four taps against one, and the coverage fit's rule
+# (boxes for short-lived snapshots) against boxes everywhere.
+set_s19() {
+  for a in "--msaa 1" "--msaa 4"; do
+    local k=${a// /}; k=${k#--}
+    flow worst_$k $C4 --frames 60 --posture 0 --view 0 $a
+    flow worst_${k}_taps4 $C4 --frames 60 --posture 0 --view 0 $a --impostor-taps 4
+    flow worst_${k}_taps1 $C4 --frames 60 --posture 0 --view 0 $a --impostor-taps 1
+    flow worst_${k}_boxes $C4 --frames 60 --posture 0 --view 0 $a --quad-fit boxes
+    flow sweep_view_$k $C4 --frames 40 --sweep view $a
+  done
+  flow parts_8_taps1 $C4 --frames 60 --view 8 --posture off --impostor-parts --impostor-taps 1
+  flow parts_8 $C4 --frames 60 --view 8 --posture off --impostor-parts
+}
 # Where the impostor frame's CPU time goes at 10,000 humans and its GPU time at 20: planner threads,
 # one model against four, blending's sort (the alpha test needs none), the coverage pass (boxes).
 set_diag() {
