@@ -119,7 +119,7 @@ struct ImpostorConfig {
   // Samples per texel of the snapshots (1 or 4). 4: drawn multisampled into a scratch page and
   // resolved into the atlas, so alpha holds each texel's coverage as the geometry's multisampled
   // pixels do; the impostor shader then takes one tap per pixel. 1: single-sampled, the impostor
-  // shader takes four taps at the 4x sample positions for the coverage.
+  // shader takes impostor_taps taps per pixel (four: at the 4x sample positions, for the coverage).
   int snapshot_samples = 1;
   // Taps of the impostor shader per pixel, with snapshot_samples 1 (4 or 1). 4: at the 4x sample
   // pattern, averaged: the pixel's coverage as a multisampled scene's pixel has it. 1: one
