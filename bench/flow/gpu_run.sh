@@ -143,6 +143,12 @@ set_s19() {
   done
   flow parts_8_taps1 $C4 --frames 60 --view 8 --posture off --impostor-parts --impostor-taps 1
   flow parts_8 $C4 --frames 60 --view 8 --posture off --impostor-parts
+  # The 20-human frame's fixed costs: per model (one body against four), the coverage pass (boxes),
+  # and the stages' GPU times.
+  flow main_1 --model $M/default.glb --frames 120
+  flow main_c4 $C4 --frames 120
+  flow main_c4_boxes $C4 --frames 120 --quad-fit boxes
+  flow main_c4_stages $C4 --frames 60 --gpu-stages
 }
 # Where the impostor frame's CPU time goes at 10,000 humans and its GPU time at 20: planner threads,
 # one model against four, blending's sort (the alpha test needs none), the coverage pass (boxes).
