@@ -662,7 +662,7 @@ const FramePlan& FramePlanner::end_frame() {
       PartCache& pc = part_cache_[r.order];
       SnapshotGpu snap;
       std::size_t tris = 0;
-      const PartCache next = part_card(job, crowd[job.character], fs.camera, fs.time, snap, tris);
+      const PartCache next = part_card(job, crowd[job.character], snap, tris);
       st.quad_texels += rect_texels(next.rect, next.window.size) - rect_texels(pc.rect, pc.window.size);
       pc = next;
       plan_.billboards[r.billboard] = part_billboard(next, job.bone, glm::mat3(1.0f));
@@ -721,23 +721,25 @@ glm::vec3 FramePlanner::lead_direction(const PartJob& job, const Character& ch, 
   return glm::normalize(sum);
 }
 
-FramePlanner::PartCache FramePlanner::part_card(const PartJob& job, const Character& ch, const SceneCamera& camera,
-                                                float time, SnapshotGpu& s, std::size_t& tris) const {
+FramePlanner::PartCache FramePlanner::part_card(const PartJob& job, const Character& ch, SnapshotGpu& s,
+                                                std::size_t& tris) const {
   const Model& m = *model_;
+  const FrameSetup& fs = frame_.setup;
+  const SceneCamera& camera = fs.camera;
   const int p = job.part;
   const BodyPart& bp = m.body_parts()[static_cast<std::size_t>(p)];
   const PartCache& pc = part_cache_[job.character * static_cast<std::size_t>(parts_) + static_cast<std::size_t>(p)];
   const AtlasWindow& win = pc.window;
   const int slot = coverage_slot_of(win);
-  const float ppm1 = camera.pixels_per_metre(1.0f);
-  const float page = static_cast<float>(atlas_.page_size());
+  const float ppm1 = fs.ppm1;
+  const float page = fs.page;
   const glm::mat4& bone = job.bone;
   const glm::vec3& centre = job.centre;
   const float r = bp.radius * ch.scale;
   // A leading card's snapshot eye: as far from the part as the camera, on the mean line of sight
   // ahead.
   const glm::vec3 eye = job.lead ? centre - glm::length(centre - camera.eye) *
-                                                glm::normalize(glm::mat3(bone) * lead_direction(job, ch, time))
+                                                glm::normalize(glm::mat3(bone) * lead_direction(job, ch, fs.time))
                                  : camera.eye;
   SnapshotCamera cam = make_snapshot_camera(centre, eye, camera.up, r,
                                             config_.snapshot_distance > 0 ? config_.snapshot_distance * ch.scale : 0.0f,
@@ -764,8 +766,8 @@ FramePlanner::PartCache FramePlanner::part_card(const PartJob& job, const Charac
                   ? glm::vec4(cam.offset / cam.half_size, cam.distance / cam.half_size, r / cam.half_size)
                   : glm::vec4(0.0f);
   next.posture = job.posture;
-  next.fitted = fit_quad(pc.taken, frame_.setup.frame);
-  next.taken = frame_.setup.frame;
+  next.fitted = fit_quad(pc.taken, fs.frame);
+  next.taken = fs.frame;
   next.rect = glm::vec4(-1, -1, 1, 1);
   glm::vec4 snap_rect = next.rect;
   if (config_.tight_quads) {
@@ -949,7 +951,7 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
       } else {
         std::size_t tris = 0;
         SnapshotGpu s;
-        pc = part_card(job, ch, camera, time, s, tris);
+        pc = part_card(job, ch, s, tris);
         turn[p] = glm::mat3(1.0f);
         plan_.snapshots[slod].push_back(s);
         ++st.part_snapshots;

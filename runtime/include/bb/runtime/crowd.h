@@ -457,9 +457,9 @@ class FramePlanner {
   std::vector<CacheState> cache_;
   std::vector<PartCache> part_cache_;  // [character * parts + part] when part cards are on
   int parts_ = 1;                      // parts per character (1: ordinary impostors)
-  // A part card's new card (and its snapshot, and the snapshot's triangles).
-  PartCache part_card(const PartJob& job, const Character& ch, const SceneCamera& camera, float time, SnapshotGpu& s,
-                      std::size_t& tris) const;
+  // A part card's new card (and its snapshot, and the snapshot's triangles), in the frame being
+  // planned (frame_.setup: its camera, time and frame number).
+  PartCache part_card(const PartJob& job, const Character& ch, SnapshotGpu& s, std::size_t& tris) const;
   glm::vec3 lead_direction(const PartJob& job, const Character& ch, float time) const;
   // Whether a snapshot taken in impostor frame `frame` gets its quad fitted to the coverage, the
   // snapshot it replaces having been taken in frame `last` (0: none).
