@@ -72,6 +72,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["snapshot_samples"] = s.snapshot_samples;
   j["impostor_taps"] = s.snapshot_samples > 1 ? 1 : s.impostor_taps;
   j["quad_fit"] = s.fit_quads ? "coverage" : "boxes";
+  j["flush_every"] = s.flush_every_indices < 0 ? ordered_json("auto") : s.flush_every_indices == 0 ? ordered_json("off") : ordered_json(s.flush_every_indices);
   if (s.hold_poses) j["hold_poses"] = true;
   if (s.refresh_budget > 0) {
     j["refresh_budget"] = s.refresh_budget;
@@ -203,6 +204,15 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     return fail("--quad-fit: expected boxes or coverage (got \"" + a.quad_fit + "\")");
   s.fit_quads = a.quad_fit == "coverage";
   s.time_stages = a.gpu_stages;
+  if (a.flush_every == "auto") s.flush_every_indices = -1;
+  else if (a.flush_every == "off") s.flush_every_indices = 0;
+  else {
+    char* end = nullptr;
+    const long n = std::strtol(a.flush_every.c_str(), &end, 10);
+    if (a.flush_every.empty() || *end != '\0' || n < 1 || n > 100000000)
+      return fail("--flush-every: expected auto, off or a number of indices from 1 (got \"" + a.flush_every + "\")");
+    s.flush_every_indices = static_cast<int>(n);
+  }
   if (a.planner_threads < 0 || a.planner_threads > 256)
     return fail("--planner-threads: expected 0 (every hardware thread) to 256 (got " + std::to_string(a.planner_threads) + ")");
   s.planner_threads = static_cast<unsigned>(a.planner_threads);
@@ -500,6 +510,9 @@ void add_flow_command(CLI::App& app, int* status) {
       ->capture_default_str();
   cmd->add_option("--quad-fit", a->quad_fit,
                   "Impostor quads: boxes (the projected pose and part boxes) or coverage (shrunk on the GPU to the snapshot's covered texels)")
+      ->capture_default_str();
+  cmd->add_option("--flush-every", a->flush_every,
+                  "Flush the drawing to the GPU after every N indices drawn into a single-sampled target, geometry and snapshots alike: auto (10000 on a software rasterizer such as llvmpipe, which then rasterizes the first characters while it shades the next ones' vertices; off elsewhere), off, or N")
       ->capture_default_str();
   cmd->add_option("--planner-threads", a->planner_threads,
                   "Most threads planning each frame of crowds of 512 and more, one per 512 characters at most (0: one per hardware thread; the plan is the same)")

@@ -66,6 +66,7 @@ struct FlowSettings {
   int impostor_taps = 4;                    // ImpostorConfig::impostor_taps
   bool fit_quads = true;                    // ImpostorConfig::fit_quads_to_coverage
   bool time_stages = false;                 // GPU timestamps between the renderer's stages (gpu_ms_stages)
+  int flush_every_indices = -1;             // DrawOptions::flush_every_indices (-1: auto, 0: never)
   unsigned planner_threads = 0;             // ImpostorConfig::planner_threads (0: every hardware thread)
   int clip = -1;                 // -1: a clip named like "walk" if any, else 0
   float clip_speed_mps = 0;      // speed the clip walks at; 0: from the clip name "..._1.20mps" or none
@@ -157,6 +158,7 @@ struct FlowArgs {
   std::string impostor_taps = "auto";
   std::string quad_fit = "coverage";
   bool gpu_stages = false;
+  std::string flush_every = "auto";
   int planner_threads = 0;
   bool quiet = false;  // no summary on stdout (the demo prints its own)
   // false: no sample frames and no flow.json, only the sweep's or crowd sizes' files (the demo's

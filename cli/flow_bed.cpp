@@ -106,6 +106,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   config.planner_threads = s.planner_threads;
   DrawOptions draw_options;
   draw_options.time_stages = s.time_stages;
+  draw_options.flush_every_indices = s.flush_every_indices;
   draw_options.edges = s.impostor_edges == "coverage"  ? ImpostorEdges::kAlphaToCoverage
                        : s.impostor_edges == "test"    ? ImpostorEdges::kAlphaTest
                        : s.impostor_edges == "samples" ? ImpostorEdges::kSamples

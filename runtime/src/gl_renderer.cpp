@@ -668,6 +668,50 @@ struct Renderer::Impl {
     if (on) glQueryCounter(stamps[k], GL_TIMESTAMP);
   }
   int snapshot_samples = 1;
+  // DrawOptions::flush_every_indices: the option of the current draw(), whether the GL is a
+  // software rasterizer, and for the pass being drawn the indices between flushes (0: none) and
+  // those drawn since the last one.
+  int flush_option = -1;
+  bool software = false;
+  std::size_t flush_at = 0, unflushed = 0;
+  // Sets flush_at for a pass of `indices` indices into the bound draw framebuffer
+  // (DrawOptions::flush_every_indices). Auto flushes only single-sampled passes of two intervals
+  // and more: a flush costs the rasterizer a new scene, and a short pass leaves no vertices to
+  // shade while it rasterizes.
+  void flushes_for_bound_target(std::size_t indices) {
+    GLint sample_buffers = 0;
+    glGetIntegerv(GL_SAMPLE_BUFFERS, &sample_buffers);
+    const std::size_t every = static_cast<std::size_t>(
+        flush_option < 0 ? (software ? kSoftwareFlushIndices : 0) : flush_option);
+    const bool pays = flush_option >= 0 || (sample_buffers == 0 && indices >= 2 * every);
+    flush_at = pays ? every : 0;
+    unflushed = 0;
+  }
+  // Indices of one instance of level `lod`, or of its body part `part` (>= 0).
+  std::size_t instance_indices(int lod, int part) const {
+    const MeshLod& ml = model->lods[lod];
+    std::size_t n = 0;
+    if (part < 0) {
+      for (const Primitive& p : ml.primitives) n += p.index_count;
+    } else {
+      const PartIndices& pi = model->part_indices(lod);
+      for (std::size_t k = 0; k < ml.primitives.size(); ++k) n += pi.ranges[k * parts + part].count;
+    }
+    return n;
+  }
+  // Indices of the snapshots due[first, first + count).
+  std::size_t due_indices(std::size_t first, std::size_t count) const {
+    std::size_t n = 0;
+    for (std::size_t i = first; i < first + count; ++i) n += instance_indices(scratch_lod[i], scratch_part[i]);
+    return n;
+  }
+  void drew_indices(std::size_t n) {
+    unflushed += n;
+    if (flush_at > 0 && unflushed >= flush_at) {
+      glFlush();
+      unflushed = 0;
+    }
+  }
   GLuint atlas = 0, atlas_depth = 0, atlas_fbo = 0;
   bool layered = false;  // one snapshot pass for all pages (depth is then a texture array too)
   std::vector<std::array<GLuint, 2>> lod_runs;  // per LOD: (count, first) in snapshot_scratch
@@ -748,19 +792,32 @@ struct Renderer::Impl {
       glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(r.count), GL_UNSIGNED_INT,
                                           reinterpret_cast<const void*>(static_cast<std::uintptr_t>(r.first) * 4), count,
                                           base_instance);
+      drew_indices(static_cast<std::size_t>(r.count) * static_cast<std::size_t>(count));
     }
   }
 
   void take_snapshots(const FramePlan& plan, bool time_stages);
   void take_snapshot_passes(const FramePlan& plan);  // the draws; sets fits_due
 
+  // Instances [base_instance, base_instance + count) of level `lod`, in as many draws as the
+  // flushes (flush_at) want.
   void draw_lod(const ShadeProgram& sp, int lod, GLsizei count, GLuint base_instance) {
     const MeshLod& ml = model->lods[lod];
-    for (const Primitive& p : ml.primitives) {
-      set_material(sp, model->materials[p.material]);
-      glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(p.index_count), GL_UNSIGNED_INT,
-                                          reinterpret_cast<const void*>(static_cast<std::uintptr_t>(p.first_index) * 4),
-                                          count, base_instance);
+    const std::size_t per = instance_indices(lod, -1);
+    for (GLsizei done = 0; done < count;) {
+      GLsizei n = count - done;
+      if (flush_at > 0 && per > 0) {
+        const std::size_t left = flush_at > unflushed ? flush_at - unflushed : 1;
+        n = std::min<GLsizei>(n, static_cast<GLsizei>(std::max<std::size_t>(1, (left + per - 1) / per)));
+      }
+      for (const Primitive& p : ml.primitives) {
+        set_material(sp, model->materials[p.material]);
+        glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(p.index_count), GL_UNSIGNED_INT,
+                                            reinterpret_cast<const void*>(static_cast<std::uintptr_t>(p.first_index) * 4),
+                                            n, base_instance + static_cast<GLuint>(done));
+      }
+      drew_indices(per * static_cast<std::size_t>(n));
+      done += n;
     }
   }
 };
@@ -829,6 +886,7 @@ void Renderer::Impl::take_snapshot_passes(const FramePlan& plan) {
       std::size_t e = b;
       while (e < due.size() && due[e].page == due[b].page) ++e;
       glBindFramebuffer(GL_DRAW_FRAMEBUFFER, scratch_fbo);
+      flushes_for_bound_target(due_indices(b, e - b));
       draw_snapshot_range(b, e - b);
       // The resolve pass reuses the clear's vertex shader, whose clip distances keep every vertex.
       glBindFramebuffer(GL_DRAW_FRAMEBUFFER, atlas_fbo);
@@ -842,8 +900,10 @@ void Renderer::Impl::take_snapshot_passes(const FramePlan& plan) {
       b = e;
     }
   } else if (layered) {
+    flushes_for_bound_target(due_indices(0, due.size()));
     draw_snapshot_range(0, due.size());
   } else {
+    flushes_for_bound_target(due_indices(0, due.size()));
     for (std::size_t b = 0; b < due.size();) {
       std::size_t e = b;
       while (e < due.size() && due[e].page == due[b].page) ++e;
@@ -885,6 +945,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   if (Status st = shade_program(d.shade_geometry, std::string(kCommon) + kGeometryVs, kShadeFs, "geometry shader"); !st)
     return st.error();
   d.layered = has_gl_extension("GL_ARB_shader_viewport_layer_array") && !std::getenv("BB_NO_LAYERED_SNAPSHOTS");
+  if (const char* name = reinterpret_cast<const char*>(glGetString(GL_RENDERER)))
+    d.software = std::strstr(name, "llvmpipe") || std::strstr(name, "softpipe");
   d.snapshot_samples = std::clamp(config.snapshot_samples, 1, 16);
   // Relit snapshots and depth-corrected cards write more targets beside the atlas: layered
   // snapshots with one sample per texel only.
@@ -1167,6 +1229,8 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
   glDepthMask(GL_TRUE);
   glDepthFunc(GL_LESS);
 
+  d.flush_option = options.flush_every_indices;
+  d.flush_at = 0;
   const bool ts = options.time_stages;
   if (ts && d.stamps[0] == 0) glCreateQueries(GL_TIMESTAMP, 5, d.stamps.data());
   d.stamped = ts;
@@ -1190,6 +1254,10 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
       for (std::size_t v = 0; v < 3; ++v)
         glProgramUniformMatrix4fv(d.shade_geometry.prog[v], d.shade_geometry.viewproj[v], 1, GL_FALSE, glm::value_ptr(viewproj));
       GLuint base = 0;
+      std::size_t indices = 0;
+      for (std::size_t lod = 0; lod < plan.geometry.size() && lod < d.lods.size(); ++lod)
+        indices += plan.geometry[lod].size() * d.instance_indices(static_cast<int>(lod), -1);
+      d.flushes_for_bound_target(indices);
       for (std::size_t lod = 0; lod < plan.geometry.size() && lod < d.lods.size(); ++lod) {
         const GLsizei count = static_cast<GLsizei>(plan.geometry[lod].size());
         if (count == 0) continue;

@@ -317,7 +317,8 @@ TEST(FlowCli, BadFlagsAreErrors) {
                            "flow --card-depth maybe", "flow --card-lead maybe", "flow --screen-weighting 0",
                            "flow --screen-weighting tall", "flow --snapshot-scale half", "flow --impostor-target msaa",
                            "flow --scaling-frames 0", "flow --scaling --scaling-humans 20,0",
-                           "flow --variants 17", "flow --model /nonexistent.glb --variants 2"}) {
+                           "flow --variants 17", "flow --model /nonexistent.glb --variants 2",
+                           "flow --flush-every 0", "flow --flush-every often", "flow --flush-every 12k"}) {
     Out o = run(args);
     EXPECT_NE(o.status, 0) << args;
     EXPECT_NE(o.text.find("flow"), std::string::npos) << args << ": " << o.text;

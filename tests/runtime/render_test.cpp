@@ -199,6 +199,61 @@ TEST(CrowdRender, ImpostorFramesMatchGeometryFrames) {
   }
 }
 
+// DrawOptions::flush_every_indices splits the instanced draws of the geometry and of the
+// snapshots and flushes between them: the frames must not change by a bit, whether every
+// instance is flushed alone, a few at a time, or none. Part cards draw ranges of the parts'
+// indices, the other split.
+TEST(CrowdRender, FlushesLeaveTheFramesAsTheyWere) {
+  REQUIRE_GL();
+  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
+  auto m = load_model(path);
+  ASSERT_TRUE(m.ok());
+  Crowd crowd = walker_ring(*m);
+  const SceneCamera cam = ring_camera();
+  auto target = OffscreenTarget::create(640, 512);
+  ASSERT_TRUE(target.ok());
+  for (bool parts : {false, true}) {
+    ImpostorConfig cfg = refresh_always();
+    cfg.part_cards = parts;
+    // One planner and renderer per flush setting, fed the same frames: every snapshot is due in
+    // every frame (thresholds 0), so each frame draws all of them.
+    const int settings[3] = {0, 1, 30000};
+    std::vector<std::unique_ptr<FramePlanner>> planners;
+    std::vector<std::unique_ptr<Renderer>> renderers;
+    for (int k = 0; k < 3; ++k) {
+      planners.push_back(std::make_unique<FramePlanner>(*m, cfg));
+      auto r = Renderer::create(*m, cfg);
+      ASSERT_TRUE(r.ok()) << r.error().message();
+      renderers.push_back(std::move(*r));
+    }
+    for (int f = 0; f < 2; ++f) {
+      const float t = 0.1f * static_cast<float>(f);
+      for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) {
+        std::vector<std::uint8_t> frames[3];
+        for (int k = 0; k < 3; ++k) {
+          (*target)->bind(true);
+          const FramePlan& plan = planners[k]->plan(crowd, cam, t, mode);
+          if (mode == RenderMode::kImpostor) {
+            EXPECT_EQ(plan.stats.snapshots, 20);
+          }
+          DrawOptions opt;
+          opt.flush_every_indices = settings[k];
+          renderers[k]->draw(plan, opt);
+          frames[k] = (*target)->read_rgba();
+        }
+        long covered = 0;
+        for (std::size_t i = 3; i < frames[0].size(); i += 4) covered += frames[0][i] > 0;
+        EXPECT_GT(covered, 5000);
+        for (int k = 1; k < 3; ++k)
+          EXPECT_TRUE(frames[k] == frames[0]) << "parts " << parts << ", frame " << f << ", "
+                                              << (mode == RenderMode::kGeometry ? "geometry" : "impostors")
+                                              << ", a flush every " << settings[k] << " indices";
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace bb::runtime
 
