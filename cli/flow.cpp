@@ -512,7 +512,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "Impostor quads: boxes (the projected pose and part boxes) or coverage (shrunk on the GPU to the snapshot's covered texels)")
       ->capture_default_str();
   cmd->add_option("--flush-every", a->flush_every,
-                  "Flush the drawing to the GPU after every N indices drawn into a single-sampled target, geometry and snapshots alike: auto (10000 on a software rasterizer such as llvmpipe, which then rasterizes the first characters while it shades the next ones' vertices; off elsewhere), off, or N")
+                  "Flush the drawing to the GPU after every N indices drawn into a single-sampled target, geometry and snapshots alike: auto (every 10000 on a software rasterizer such as llvmpipe, which then rasterizes the first characters while it shades the next ones' vertices: in single-sampled geometry passes of 20000 and more and snapshot passes of 60000 and more; never on a GPU), off, or N (any pass)")
       ->capture_default_str();
   cmd->add_option("--planner-threads", a->planner_threads,
                   "Most threads planning each frame of crowds of 512 and more, one per 512 characters at most (0: one per hardware thread; the plan is the same)")

@@ -675,15 +675,19 @@ struct Renderer::Impl {
   bool software = false;
   std::size_t flush_at = 0, unflushed = 0;
   // Sets flush_at for a pass of `indices` indices into the bound draw framebuffer
-  // (DrawOptions::flush_every_indices). Auto flushes only single-sampled passes of two intervals
-  // and more: a flush costs the rasterizer a new scene, and a short pass leaves no vertices to
-  // shade while it rasterizes.
-  void flushes_for_bound_target(std::size_t indices) {
+  // (DrawOptions::flush_every_indices). Auto flushes only single-sampled passes of `intervals`
+  // flush intervals and more: a short pass leaves no vertices to shade while the rasterizer
+  // works, and every flush has a lasting cost on llvmpipe (a few flushes in the first frame made
+  // the later impostor frames of the flow test bed 7 % slower, 1.59 -> 1.71 ms at 8 degrees: it
+  // seems to keep more scenes in rotation afterwards). The geometry pass flushes from two
+  // intervals; a snapshot pass from six, since it ends in a framebuffer change, which flushes
+  // anyway (our four bodies' worst case, 32,000 indices a model: no gain from flushing within).
+  void flushes_for_bound_target(std::size_t indices, std::size_t intervals) {
     GLint sample_buffers = 0;
     glGetIntegerv(GL_SAMPLE_BUFFERS, &sample_buffers);
     const std::size_t every = static_cast<std::size_t>(
         flush_option < 0 ? (software ? kSoftwareFlushIndices : 0) : flush_option);
-    const bool pays = flush_option >= 0 || (sample_buffers == 0 && indices >= 2 * every);
+    const bool pays = flush_option >= 0 || (sample_buffers == 0 && indices >= intervals * every);
     flush_at = pays ? every : 0;
     unflushed = 0;
   }
@@ -886,7 +890,7 @@ void Renderer::Impl::take_snapshot_passes(const FramePlan& plan) {
       std::size_t e = b;
       while (e < due.size() && due[e].page == due[b].page) ++e;
       glBindFramebuffer(GL_DRAW_FRAMEBUFFER, scratch_fbo);
-      flushes_for_bound_target(due_indices(b, e - b));
+      flushes_for_bound_target(due_indices(b, e - b), 6);
       draw_snapshot_range(b, e - b);
       // The resolve pass reuses the clear's vertex shader, whose clip distances keep every vertex.
       glBindFramebuffer(GL_DRAW_FRAMEBUFFER, atlas_fbo);
@@ -900,10 +904,10 @@ void Renderer::Impl::take_snapshot_passes(const FramePlan& plan) {
       b = e;
     }
   } else if (layered) {
-    flushes_for_bound_target(due_indices(0, due.size()));
+    flushes_for_bound_target(due_indices(0, due.size()), 6);
     draw_snapshot_range(0, due.size());
   } else {
-    flushes_for_bound_target(due_indices(0, due.size()));
+    flushes_for_bound_target(due_indices(0, due.size()), 6);
     for (std::size_t b = 0; b < due.size();) {
       std::size_t e = b;
       while (e < due.size() && due[e].page == due[b].page) ++e;
@@ -1257,7 +1261,7 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
       std::size_t indices = 0;
       for (std::size_t lod = 0; lod < plan.geometry.size() && lod < d.lods.size(); ++lod)
         indices += plan.geometry[lod].size() * d.instance_indices(static_cast<int>(lod), -1);
-      d.flushes_for_bound_target(indices);
+      d.flushes_for_bound_target(indices, 2);
       for (std::size_t lod = 0; lod < plan.geometry.size() && lod < d.lods.size(); ++lod) {
         const GLsizei count = static_cast<GLsizei>(plan.geometry[lod].size());
         if (count == 0) continue;

@@ -70,8 +70,9 @@ struct DrawOptions {
   // -1: auto; 0: never; N: every N indices, into any target. Mesa's llvmpipe shades a draw's
   // vertices on the thread that submits it and rasterizes only from a flush on, so without
   // flushes a frame's vertex work and its rasterization run one after the other. Auto flushes
-  // every kSoftwareFlushIndices on a software rasterizer, into a single-sampled target, in passes
-  // of twice that and more; never on a GPU. Flow test bed, 20 humans, geometry frames at one
+  // every kSoftwareFlushIndices on a software rasterizer, into a single-sampled target, in a
+  // geometry pass of twice that and more, or a snapshot pass of six times that (it ends in a
+  // framebuffer change, which flushes anyway); never on a GPU. Flow test bed, 20 humans, geometry frames at one
   // sample: our four bodies 7.3 -> 5.4 ms, CesiumMan 18.8 -> 11.2 ms, the Fox 5.3-5.8 -> 5.2 ms;
   // 10,000 of our bodies 590 -> 550 ms, and their impostors with 1,000 refreshes a frame 108 ->
   // 90 ms. Into a multisampled target flushes cost more than they overlap (our bodies at 4
