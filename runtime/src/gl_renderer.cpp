@@ -668,28 +668,32 @@ struct Renderer::Impl {
     if (on) glQueryCounter(stamps[k], GL_TIMESTAMP);
   }
   int snapshot_samples = 1;
-  // DrawOptions::flush_every_indices: the option of the current draw(), whether the GL is a
-  // software rasterizer, and for the pass being drawn the indices between flushes (0: none) and
-  // those drawn since the last one.
-  int flush_option = -1;
+  // DrawOptions::flush_every_indices: whether the GL is a software rasterizer; for the current
+  // draw(), whether its option is auto and the interval it asks for (0: no flushes); for the pass
+  // being drawn, the interval (0: none) and the indices drawn since the last flush.
   bool software = false;
-  std::size_t flush_at = 0, unflushed = 0;
-  // Sets flush_at for a pass of `indices` indices into the bound draw framebuffer
-  // (DrawOptions::flush_every_indices). Auto flushes only single-sampled passes of `intervals`
-  // flush intervals and more: a short pass leaves no vertices to shade while the rasterizer
-  // works, and every flush has a lasting cost on llvmpipe (a few flushes in the first frame made
-  // the later impostor frames of the flow test bed 7 % slower, 1.59 -> 1.71 ms at 8 degrees: it
-  // seems to keep more scenes in rotation afterwards). The geometry pass flushes from two
-  // intervals; a snapshot pass from six, since it ends in a framebuffer change, which flushes
+  bool flush_auto = true;
+  std::size_t flush_every = 0, flush_at = 0, unflushed = 0;
+  // Sets flush_at for a pass into the bound draw framebuffer; `indices()` gives the pass's
+  // indices (only asked when flushes are on). Auto flushes only single-sampled passes of
+  // `intervals` flush intervals and more: a short pass leaves no vertices to shade while the
+  // rasterizer works, and every flush has a lasting cost on llvmpipe (a few flushes in the first
+  // frame made the later impostor frames of the flow test bed 7 % slower, 1.59 -> 1.71 ms at 8
+  // degrees: it seems to keep more scenes in rotation afterwards). The geometry pass flushes from
+  // two intervals; a snapshot pass from six, since it ends in a framebuffer change, which flushes
   // anyway (our four bodies' worst case, 32,000 indices a model: no gain from flushing within).
-  void flushes_for_bound_target(std::size_t indices, std::size_t intervals) {
+  template <class Indices>
+  void flushes_for_bound_target(Indices&& indices, std::size_t intervals) {
+    flush_at = 0;
+    unflushed = 0;
+    if (flush_every == 0) return;
+    if (!flush_auto) {
+      flush_at = flush_every;
+      return;
+    }
     GLint sample_buffers = 0;
     glGetIntegerv(GL_SAMPLE_BUFFERS, &sample_buffers);
-    const std::size_t every = static_cast<std::size_t>(
-        flush_option < 0 ? (software ? kSoftwareFlushIndices : 0) : flush_option);
-    const bool pays = flush_option >= 0 || (sample_buffers == 0 && indices >= intervals * every);
-    flush_at = pays ? every : 0;
-    unflushed = 0;
+    if (sample_buffers == 0 && indices() >= intervals * flush_every) flush_at = flush_every;
   }
   // Indices of one instance of level `lod`, or of its body part `part` (>= 0).
   std::size_t instance_indices(int lod, int part) const {
@@ -890,7 +894,7 @@ void Renderer::Impl::take_snapshot_passes(const FramePlan& plan) {
       std::size_t e = b;
       while (e < due.size() && due[e].page == due[b].page) ++e;
       glBindFramebuffer(GL_DRAW_FRAMEBUFFER, scratch_fbo);
-      flushes_for_bound_target(due_indices(b, e - b), 6);
+      flushes_for_bound_target([&] { return due_indices(b, e - b); }, 6);
       draw_snapshot_range(b, e - b);
       // The resolve pass reuses the clear's vertex shader, whose clip distances keep every vertex.
       glBindFramebuffer(GL_DRAW_FRAMEBUFFER, atlas_fbo);
@@ -904,10 +908,10 @@ void Renderer::Impl::take_snapshot_passes(const FramePlan& plan) {
       b = e;
     }
   } else if (layered) {
-    flushes_for_bound_target(due_indices(0, due.size()), 6);
+    flushes_for_bound_target([&] { return due_indices(0, due.size()); }, 6);
     draw_snapshot_range(0, due.size());
   } else {
-    flushes_for_bound_target(due_indices(0, due.size()), 6);
+    flushes_for_bound_target([&] { return due_indices(0, due.size()); }, 6);
     for (std::size_t b = 0; b < due.size();) {
       std::size_t e = b;
       while (e < due.size() && due[e].page == due[b].page) ++e;
@@ -1233,7 +1237,9 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
   glDepthMask(GL_TRUE);
   glDepthFunc(GL_LESS);
 
-  d.flush_option = options.flush_every_indices;
+  d.flush_auto = options.flush_every_indices < 0;
+  d.flush_every = static_cast<std::size_t>(
+      d.flush_auto ? (d.software ? kSoftwareFlushIndices : 0) : options.flush_every_indices);
   d.flush_at = 0;
   const bool ts = options.time_stages;
   if (ts && d.stamps[0] == 0) glCreateQueries(GL_TIMESTAMP, 5, d.stamps.data());
@@ -1258,10 +1264,14 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
       for (std::size_t v = 0; v < 3; ++v)
         glProgramUniformMatrix4fv(d.shade_geometry.prog[v], d.shade_geometry.viewproj[v], 1, GL_FALSE, glm::value_ptr(viewproj));
       GLuint base = 0;
-      std::size_t indices = 0;
-      for (std::size_t lod = 0; lod < plan.geometry.size() && lod < d.lods.size(); ++lod)
-        indices += plan.geometry[lod].size() * d.instance_indices(static_cast<int>(lod), -1);
-      d.flushes_for_bound_target(indices, 2);
+      d.flushes_for_bound_target(
+          [&] {
+            std::size_t n = 0;
+            for (std::size_t lod = 0; lod < plan.geometry.size() && lod < d.lods.size(); ++lod)
+              n += plan.geometry[lod].size() * d.instance_indices(static_cast<int>(lod), -1);
+            return n;
+          },
+          2);
       for (std::size_t lod = 0; lod < plan.geometry.size() && lod < d.lods.size(); ++lod) {
         const GLsizei count = static_cast<GLsizei>(plan.geometry[lod].size());
         if (count == 0) continue;
