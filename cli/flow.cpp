@@ -72,6 +72,8 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["snapshot_samples"] = s.snapshot_samples;
   j["impostor_taps"] = s.snapshot_samples > 1 ? 1 : s.impostor_taps;
   j["quad_fit"] = s.fit_quads ? "coverage" : "boxes";
+  j["short_lived"] = r.short_lived_as_geometry ? "geometry" : "snapshot";
+  if (r.short_lived_as_geometry) j["short_lived_geometry"] = r.short_lived_geometry;
   j["flush_every"] = s.flush_every_indices < 0 ? ordered_json("auto") : s.flush_every_indices == 0 ? ordered_json("off") : ordered_json(s.flush_every_indices);
   if (s.hold_poses) j["hold_poses"] = true;
   if (s.refresh_budget > 0) {
@@ -213,6 +215,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
       return fail("--flush-every: expected auto, off or a number of indices from 1 (got \"" + a.flush_every + "\")");
     s.flush_every_indices = static_cast<int>(n);
   }
+  if (a.short_lived != "auto" && a.short_lived != "geometry" && a.short_lived != "snapshot")
+    return fail("--short-lived: expected auto, geometry or snapshot (got \"" + a.short_lived + "\")");
+  s.short_lived = a.short_lived == "auto" ? -1 : a.short_lived == "geometry" ? 1 : 0;
   if (a.planner_threads < 0 || a.planner_threads > 256)
     return fail("--planner-threads: expected 0 (every hardware thread) to 256 (got " + std::to_string(a.planner_threads) + ")");
   s.planner_threads = static_cast<unsigned>(a.planner_threads);
@@ -513,6 +518,9 @@ void add_flow_command(CLI::App& app, int* status) {
       ->capture_default_str();
   cmd->add_option("--flush-every", a->flush_every,
                   "Flush the drawing to the GPU after every N indices drawn into a single-sampled target, geometry and snapshots alike: auto (every 10000 on a software rasterizer such as llvmpipe, which then rasterizes the first characters while it shades the next ones' vertices: in single-sampled geometry passes of 20000 and more and snapshot passes of 60000 and more; never on a GPU), off, or N (any pass)")
+      ->capture_default_str();
+  cmd->add_option("--short-lived", a->short_lived,
+                  "A character whose cache test fires again in the frame after its snapshot (a snapshot drawn once never pays): geometry (drawn as geometry until a frame passes without the test firing), snapshot (refreshed every time) or auto (geometry where the impostor path's target has the scene's samples, so that it is the geometry's picture; whole impostors without a refresh budget)")
       ->capture_default_str();
   cmd->add_option("--planner-threads", a->planner_threads,
                   "Most threads planning each frame of crowds of 512 and more, one per 512 characters at most (0: one per hardware thread; the plan is the same)")

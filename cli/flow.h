@@ -67,6 +67,10 @@ struct FlowSettings {
   bool fit_quads = true;                    // ImpostorConfig::fit_quads_to_coverage
   bool time_stages = false;                 // GPU timestamps between the renderer's stages (gpu_ms_stages)
   int flush_every_indices = -1;             // DrawOptions::flush_every_indices (-1: auto, 0: never)
+  // ImpostorConfig::short_lived_as_geometry: -1 auto (on where the impostor path's target has the
+  // geometry path's samples, so a character drawn as geometry there is the geometry's picture),
+  // 0 off (every refresh a snapshot), 1 on.
+  int short_lived = -1;
   unsigned planner_threads = 0;             // ImpostorConfig::planner_threads (0: every hardware thread)
   int clip = -1;                 // -1: a clip named like "walk" if any, else 0
   float clip_speed_mps = 0;      // speed the clip walks at; 0: from the clip name "..._1.20mps" or none
@@ -99,6 +103,10 @@ struct FlowResult {
   // measured frames of each path (geometry: its geometry stage; impostors: the other three).
   runtime::StageTimes geometry_gpu, impostor_gpu;
   double deferred_refreshes = 0;            // mean stale impostors held back per frame by the budget
+  bool short_lived_as_geometry = false;     // what FlowSettings::short_lived resolved to
+  // Mean share of the drawn characters that the impostor path drew as geometry instead of a
+  // snapshot drawn once (ImpostorConfig::short_lived_as_geometry).
+  double short_lived_geometry = 0;
   int snapshots_max = 0;                    // most impostors (part cards: cards) refreshed in one measured frame
   double ratio = 0;                         // impostor / geometry
   double refresh_fraction = 0;              // mean snapshots / impostors
@@ -159,6 +167,7 @@ struct FlowArgs {
   std::string quad_fit = "coverage";
   bool gpu_stages = false;
   std::string flush_every = "auto";
+  std::string short_lived = "auto";  // auto, geometry or snapshot (FlowSettings::short_lived)
   int planner_threads = 0;
   bool quiet = false;  // no summary on stdout (the demo prints its own)
   // false: no sample frames and no flow.json, only the sweep's or crowd sizes' files (the demo's

@@ -112,6 +112,13 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
                        : s.impostor_edges == "samples" ? ImpostorEdges::kSamples
                        : s.impostor_edges == "centre"  ? ImpostorEdges::kCentre
                                                        : ImpostorEdges::kBlend;
+  // Impostor frames hold impostors only: blended edges need no multisampled target.
+  const int samples_i =
+      s.impostor_target_samples > 0 ? s.impostor_target_samples : impostor_target_samples(draw_options.edges, s.msaa);
+  // A character drawn as geometry in an impostor frame is the geometry path's picture only in a
+  // target of the same samples (asked: llvmpipe gives 1 or 4 to both alike).
+  config.short_lived_as_geometry = s.short_lived > 0 || (s.short_lived < 0 && samples_i == s.msaa);
+  out.short_lived_as_geometry = config.short_lived_as_geometry && s.refresh_budget == 0;
   // One renderer, planner and crowd per model; human i is of model i % models.size().
   std::vector<std::unique_ptr<Renderer>> renderers;
   std::vector<std::unique_ptr<FramePlanner>> planners;
@@ -138,9 +145,6 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   }
   auto target_g = OffscreenTarget::create(s.width, s.height, s.msaa);
   if (!target_g) return target_g.error();
-  // Impostor frames hold impostors only: blended edges need no multisampled target.
-  const int samples_i =
-      s.impostor_target_samples > 0 ? s.impostor_target_samples : impostor_target_samples(draw_options.edges, s.msaa);
   auto target_i = OffscreenTarget::create(s.width, s.height, samples_i);
   if (!target_i) return target_i.error();
   out.geometry_target_samples = (*target_g)->samples();
@@ -202,7 +206,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
 
   double g_ms = 0, i_ms = 0, refresh = 0, psnr_sum = 0, ssim_sum = 0, tri_g = 0, tri_s = 0, atlas_use = 0, cards = 0;
   double psnr_min = std::numeric_limits<double>::infinity();
-  double deferred = 0, quad_texels = 0, drawn_texels = 0;
+  double deferred = 0, quad_texels = 0, drawn_texels = 0, short_lived = 0;
   int drawn_frames = 0;
   std::vector<double> g_times, i_times;  // per measured frame, ms
   int compared = 0, atlas_pages = 0;
@@ -274,8 +278,8 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
       FrameStats sum;
       int refreshed = 0, refreshable = 0;  // cards or whole impostors, as refresh_fraction counts
       float pixel_use = 0;
-      for (const FramePlan* p : plans) {
-        const FrameStats& st = p->stats;
+      for (std::size_t k = 0; k < plans.size(); ++k) {
+        const FrameStats& st = plans[k]->stats;
         sum.geometry_triangles += st.geometry_triangles;
         sum.snapshot_triangles += st.snapshot_triangles;
         sum.deferred_refreshes += st.deferred_refreshes;
@@ -286,8 +290,18 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
         sum.quad_texels += st.quad_texels;
         sum.atlas_pages_used += st.atlas_pages_used;
         pixel_use += st.atlas_pixel_use;
-        refreshed += st.part_cards > 0 ? st.part_snapshots : st.snapshots;
-        refreshable += st.part_cards > 0 ? st.part_cards : st.impostors;
+        // A character drawn as geometry instead of a snapshot drawn once counts as refreshed.
+        // (With part cards, as many cards as the model has parts.)
+        const int per = s.part_cards ? static_cast<int>(models[k]->body_parts().size()) : 1;
+        if (per > 1) {
+          refreshed += st.part_snapshots + per * st.short_lived_geometry;
+          refreshable += st.part_cards + per * st.short_lived_geometry;
+        } else {
+          refreshed += st.snapshots + st.short_lived_geometry;
+          refreshable += st.impostors + st.short_lived_geometry;
+        }
+        sum.short_lived_geometry += st.short_lived_geometry;
+        sum.characters += st.characters - st.culled;
       }
       sum.refresh_fraction = refreshable > 0 ? static_cast<float>(refreshed) / static_cast<float>(refreshable) : 0.0f;
       sum.atlas_pixel_use = pixel_use / static_cast<float>(nm);
@@ -309,6 +323,8 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
         i_ms += ms;
         i_times.push_back(ms);
         deferred += st.deferred_refreshes;
+        // st.characters: the drawn ones (the models' characters not culled).
+        short_lived += st.characters > 0 ? static_cast<double>(st.short_lived_geometry) / st.characters : 0.0;
         out.snapshots_max = std::max(out.snapshots_max, st.part_cards > 0 ? st.part_snapshots : st.snapshots);
         refresh += st.refresh_fraction;
         tri_s += static_cast<double>(st.snapshot_triangles);
@@ -371,6 +387,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   out.snapshot_triangles = tri_s / n;
   out.part_cards = cards / n;
   out.deferred_refreshes = deferred / n;
+  out.short_lived_geometry = short_lived / n;
   out.quad_texels = quad_texels / n;
   out.drawn_quad_texels = drawn_frames ? drawn_texels / drawn_frames : 0.0;
   for (FlowResult::Split* sp : {&out.geometry_split, &out.impostor_split}) {

@@ -342,7 +342,7 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
 
       // Posture distances of the current frame (squared, model space, scaled).
       const std::array<float, 4> posture = posture_at(bc, f0, f1, blend);
-      const bool must = refresh;  // no usable snapshot: refreshed whatever the budget
+      bool must = refresh;  // no usable snapshot: refreshed whatever the budget
       float staleness = 0.0f;
       if (!refresh) {
         const float w = distance_weight(cc, glm::distance(ta, camera.eye), pixels);
@@ -364,74 +364,98 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
       } else if (!cs.valid) {
         ++st.new_snapshots;
       }
-      const AtlasWindow& win = cs.window;
-      const int slot = coverage_slot_of(win);
-      if (refresh && !must && budget && !out.forced) {
-        // Stale: drawn from its old snapshot unless the budget reaches it. Its refresh is worked
-        // out only then (end_frame plans it again, forced): most stale impostors wait.
-        out.pending->push_back(PendingRefresh{staleness, static_cast<std::uint32_t>(i),
-                                              static_cast<std::uint32_t>(out.billboards->size())});
-      } else if (refresh) {
-        std::optional<SnapshotCamera> aligned;
-        if (config_.aligned_snapshots)
-          aligned = make_aligned_snapshot_camera(camera, ta, radius, win.size, config_.texels_per_pixel);
-        if (aligned) sc = *aligned;
-        CacheState next = cs;
-        next.valid = true;
-        next.view = view;
-        next.posture = posture;
-        next.half_size = sc.half_size;
-        next.aligned = aligned.has_value();
-        next.fitted = fit_quad(cs.valid ? cs.taken : 0, fs.frame);
-        next.taken = fs.frame;
-        next.offset = glm::vec2(glm::dot(sc.ta - ta, cam_right), glm::dot(sc.ta - ta, cam_up));
-        next.rect = glm::vec4(-1, -1, 1, 1);
-        glm::vec4 snap_rect = next.rect;
-        if (config_.tight_quads) {
-          // This frame's pose box.
-          const auto& b0 = bc.bounds[f0];
-          const auto& b1 = bc.bounds[f1];
-          const glm::vec3 lo = glm::min(b0[0], b1[0]) * ch.scale, hi = glm::max(b0[1], b1[1]) * ch.scale;
-          WindowRects r = window_rects(sc, win.size, [&](int k) {
-            const glm::vec3 p((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
-            return ch.position + glm::vec3(cy * p.x + sy * p.z, p.y, -sy * p.x + cy * p.z) - sc.ta;
-          });
-          if (parts.size() > 1) {
-            // Tighter: the union of the body parts' boxes, each carried by its bone (a limb's
-            // box lies along the limb), within the pose's box.
-            const glm::mat4 place = placement(ch);
-            glm::vec4 quad(1e30f, 1e30f, -1e30f, -1e30f), clear = quad;
-            for (const BodyPart& bp : parts) {
-              const glm::mat4 bone = place * palette_matrix(pal, np, bc, f0, f1, blend, bp.bone);
-              const WindowRects rr = window_rects(sc, win.size, [&](int k) {
-                const glm::vec3 c((k & 1) ? bp.box_max.x : bp.box_min.x, (k & 2) ? bp.box_max.y : bp.box_min.y,
-                                  (k & 4) ? bp.box_max.z : bp.box_min.z);
-                return glm::vec3(bone * glm::vec4(c, 1.0f)) - sc.ta;
-              });
-              quad = rect_union(quad, rr.quad);
-              clear = rect_union(clear, rr.snapshot);
-            }
-            r.quad = rect_intersection(r.quad, quad);
-            r.snapshot = rect_intersection(r.snapshot, clear);
-          }
-          next.rect = r.quad;
-          snap_rect = r.snapshot;
+      if (config_.short_lived_as_geometry && !must && !budget) {
+        // Geometry when its last snapshot is stale one frame on; it stays geometry until its
+        // posture and view change by less than half the thresholds from one frame to the next
+        // (hysteresis: a snapshot taken then should outlive two frames).
+        bool geometry_now = refresh && cs.taken + 1 == fs.frame;
+        if (cs.picture_behind && !refresh) {
+          const float w = distance_weight(cc, glm::distance(ta, camera.eye), pixels);
+          if (cc.view_test)
+            geometry_now |= rotation_cosine(cs.view, view) < std::cos(std::min(glm::radians(cc.view_threshold_deg) * w, 3.14159265f) * 0.5f);
+          if (cc.posture_test) geometry_now |= posture_changed(cs.posture, posture, 0.5f * cc.posture_threshold * w);
         }
-        const int slod = config_.snapshot_lod_from_screen ? std::min(lod_for(pixels, camera.height), lods - 1)
-                                                          : window_lod[win.size_class];
-        const float tpp = window_texels_per_pixel(win.size, sc.half_size, depth, ppm1);
-        cs = next;
-        (*out.snapshots)[slod].push_back(
-            snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect, slot, next.fitted, tpp));
-        ++st.snapshots;
-        st.snapshot_triangles += m.lods[slod].triangle_count();
-        ++*out.budget_used;
+        if (geometry_now) {
+          cs.view = view;  // the cached state moves on as if refreshed
+          cs.posture = posture;
+          cs.taken = fs.frame;
+          cs.picture_behind = true;
+          as_geometry = true;
+          ++st.short_lived_geometry;
+        }
       }
-      // The old snapshot is drawn where the character stands now (Ta moves with it).
-      out.billboards->push_back(billboard(ta, cs, page, slot, cam_right, cam_up));
-      st.quad_texels += rect_texels(cs.rect, win.size);
-      ++st.impostors;
-      ++st.impostors_per_window[win.size_class];
+      if (!as_geometry && cs.picture_behind) refresh = must = true;  // its window holds an older picture
+      if (!as_geometry) {
+        const AtlasWindow& win = cs.window;
+        const int slot = coverage_slot_of(win);
+        if (refresh && !must && budget && !out.forced) {
+          // Stale: drawn from its old snapshot unless the budget reaches it. Its refresh is worked
+          // out only then (end_frame plans it again, forced): most stale impostors wait.
+          out.pending->push_back(PendingRefresh{staleness, static_cast<std::uint32_t>(i),
+                                                static_cast<std::uint32_t>(out.billboards->size())});
+        } else if (refresh) {
+          std::optional<SnapshotCamera> aligned;
+          if (config_.aligned_snapshots)
+            aligned = make_aligned_snapshot_camera(camera, ta, radius, win.size, config_.texels_per_pixel);
+          if (aligned) sc = *aligned;
+          CacheState next = cs;
+          next.valid = true;
+          next.view = view;
+          next.posture = posture;
+          next.half_size = sc.half_size;
+          next.aligned = aligned.has_value();
+          next.fitted = fit_quad(cs.valid && !cs.picture_behind ? cs.taken : 0, fs.frame);
+          next.picture_behind = false;
+          next.taken = fs.frame;
+          next.offset = glm::vec2(glm::dot(sc.ta - ta, cam_right), glm::dot(sc.ta - ta, cam_up));
+          next.rect = glm::vec4(-1, -1, 1, 1);
+          glm::vec4 snap_rect = next.rect;
+          if (config_.tight_quads) {
+            // This frame's pose box.
+            const auto& b0 = bc.bounds[f0];
+            const auto& b1 = bc.bounds[f1];
+            const glm::vec3 lo = glm::min(b0[0], b1[0]) * ch.scale, hi = glm::max(b0[1], b1[1]) * ch.scale;
+            WindowRects r = window_rects(sc, win.size, [&](int k) {
+              const glm::vec3 p((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
+              return ch.position + glm::vec3(cy * p.x + sy * p.z, p.y, -sy * p.x + cy * p.z) - sc.ta;
+            });
+            if (parts.size() > 1) {
+              // Tighter: the union of the body parts' boxes, each carried by its bone (a limb's
+              // box lies along the limb), within the pose's box.
+              const glm::mat4 place = placement(ch);
+              glm::vec4 quad(1e30f, 1e30f, -1e30f, -1e30f), clear = quad;
+              for (const BodyPart& bp : parts) {
+                const glm::mat4 bone = place * palette_matrix(pal, np, bc, f0, f1, blend, bp.bone);
+                const WindowRects rr = window_rects(sc, win.size, [&](int k) {
+                  const glm::vec3 c((k & 1) ? bp.box_max.x : bp.box_min.x, (k & 2) ? bp.box_max.y : bp.box_min.y,
+                                    (k & 4) ? bp.box_max.z : bp.box_min.z);
+                  return glm::vec3(bone * glm::vec4(c, 1.0f)) - sc.ta;
+                });
+                quad = rect_union(quad, rr.quad);
+                clear = rect_union(clear, rr.snapshot);
+              }
+              r.quad = rect_intersection(r.quad, quad);
+              r.snapshot = rect_intersection(r.snapshot, clear);
+            }
+            next.rect = r.quad;
+            snap_rect = r.snapshot;
+          }
+          const int slod = config_.snapshot_lod_from_screen ? std::min(lod_for(pixels, camera.height), lods - 1)
+                                                            : window_lod[win.size_class];
+          const float tpp = window_texels_per_pixel(win.size, sc.half_size, depth, ppm1);
+          cs = next;
+          (*out.snapshots)[slod].push_back(
+              snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect, slot, next.fitted, tpp));
+          ++st.snapshots;
+          st.snapshot_triangles += m.lods[slod].triangle_count();
+          ++*out.budget_used;
+        }
+        // The old snapshot is drawn where the character stands now (Ta moves with it).
+        out.billboards->push_back(billboard(ta, cs, page, slot, cam_right, cam_up));
+        st.quad_texels += rect_texels(cs.rect, win.size);
+        ++st.impostors;
+        ++st.impostors_per_window[win.size_class];
+      }
     }
   }
   if (as_geometry) {
@@ -922,6 +946,41 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
         staleness[p] = std::max(staleness[p], std::acos(std::clamp(c, -1.0f, 1.0f)) / std::max(vthr, 1e-6f));
       }
     }
+  }
+  // ImpostorConfig::short_lived_as_geometry: geometry when at least half the cards are due one
+  // frame after their snapshots; it stays geometry until every card changes by less than half the
+  // thresholds from one frame to the next, and then all its cards are taken anew.
+  if (config_.short_lived_as_geometry && !all && cc.refresh_budget <= 0) {
+    const std::uint32_t frame = frame_.setup.frame;
+    int young = 0;
+    for (int p = 0; p < count; ++p) young += due[p] && !must[p] && pcs[p].taken + 1 == frame;
+    bool geometry_now = young > 0 && 2 * young >= count;
+    if (cs.picture_behind && !geometry_now) {
+      const float chalf = std::cos(0.5f * vthr);
+      for (int p = 0; p < count && !geometry_now; ++p) {
+        if (must[p]) continue;
+        geometry_now = cc.posture_test && posture_changed(pcs[p].posture, posture, 0.5f * cc.posture_threshold * w);
+        if (cc.view_test && !geometry_now) {
+          const glm::vec3 n = turn[p] * glm::normalize(glm::mat3(bone[p]) * pcs[p].card_normal);
+          geometry_now = glm::dot(n, glm::normalize(centre[p] - camera.eye)) < chalf;
+        }
+      }
+    }
+    if (geometry_now) {
+      for (int p = 0; p < count; ++p) {  // each card's state moves on as if it had been taken
+        const glm::vec3 los(glm::inverse(bone[p]) * glm::vec4(glm::normalize(centre[p] - camera.eye), 0.0f));
+        pcs[p].normal = pcs[p].card_normal = los;
+        pcs[p].posture = posture;
+        pcs[p].taken = frame;
+      }
+      cs.picture_behind = true;
+      ++st.short_lived_geometry;
+      return false;
+    }
+  }
+  if (cs.picture_behind) {  // the windows hold older pictures
+    for (int p = 0; p < count; ++p) due[p] = must[p] = true;
+    cs.picture_behind = false;
   }
   if (by_posture) ++st.posture_refreshes;
   if (by_view) ++st.view_refreshes;

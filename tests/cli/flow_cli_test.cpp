@@ -82,9 +82,10 @@ TEST(FlowCli, WorstCaseRefreshesEveryImpostorEveryFrame) {
   EXPECT_NEAR(e["interior"]["share"].get<double>() + e["edge"]["share"].get<double>() +
                   e["one_only"]["share"].get<double>(),
               1.0, 1e-9);
-  // The alpha test instead of coverage: worse edges, same refreshes.
+  // The alpha test instead of coverage: worse edges, same refreshes (snapshots: its target has the
+  // scene's samples, where --short-lived auto would draw these characters as geometry).
   Out test = run("flow --model " + model + " --frames 4 --size 320x256 --posture 0 --view 0 --texels-per-pixel 2 "
-                 "--impostor-edges test --json -o " + d.string());
+                 "--impostor-edges test --short-lived snapshot --json -o " + d.string());
   ASSERT_EQ(test.status, 0) << test.text;
   auto jt = nlohmann::json::parse(last_json_line(test.text));
   EXPECT_EQ(jt["impostor_edges"], "test");
@@ -118,7 +119,7 @@ TEST(FlowCli, PartCardsBeatWholeImpostorsAtEightDegrees) {
   // 20-human test bed at 8 degrees).
   EXPECT_EQ(jw["impostor_edges"], "blend");
   EXPECT_EQ(jp["impostor_edges"], "blend");
-  Out parts_coverage = run(args + " --impostor-parts --impostor-edges coverage");
+  Out parts_coverage = run(args + " --impostor-parts --impostor-edges coverage --short-lived snapshot");
   ASSERT_EQ(parts_coverage.status, 0) << parts_coverage.text;
   auto jc = nlohmann::json::parse(last_json_line(parts_coverage.text));
   EXPECT_EQ(jc["impostor_edges"], "coverage");
@@ -206,7 +207,7 @@ TEST(FlowCli, OneTapCopiesASingleSampledScene) {
   if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
   fs::path d = fs::temp_directory_path() / "bb_flow_cli_test_taps";
   const std::string args = "flow --model " + model + " --frames 4 --size 640x512 --msaa 1 --posture 0 --view 0 " +
-                           "--snapshot-grid pixels --json -o " + d.string();
+                           "--snapshot-grid pixels --short-lived snapshot --json -o " + d.string();
   Out one = run(args);
   if (one.text.find("EGL") != std::string::npos && one.status != 0) GTEST_SKIP() << "no headless OpenGL: " << one.text;
   ASSERT_EQ(one.status, 0) << one.text;
@@ -227,6 +228,39 @@ TEST(FlowCli, OneTapCopiesASingleSampledScene) {
   EXPECT_LT(j4["psnr_db"].get<double>(), j1["psnr_db"].get<double>() - 8.0);
 }
 
+// --short-lived auto: where the impostor path's target has the scene's samples (--msaa 1 here), a
+// character whose snapshot would be drawn once is drawn as geometry. With both thresholds 0 every
+// character is then geometry after the warm-up's snapshots: the impostor frames are the geometry
+// frames, and every character counts as refreshed every frame.
+TEST(FlowCli, ShortLivedSnapshotsBecomeGeometryWhereTheTargetsMatch) {
+  std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
+  fs::path d = fs::temp_directory_path() / "bb_flow_cli_test_short";
+  const std::string args = "flow --model " + model + " --frames 4 --size 480x384 --posture 0 --view 0 --json -o " + d.string();
+  Out one = run(args + " --msaa 1");
+  if (one.text.find("EGL") != std::string::npos && one.status != 0) GTEST_SKIP() << "no headless OpenGL: " << one.text;
+  ASSERT_EQ(one.status, 0) << one.text;
+  Out snap = run(args + " --msaa 1 --short-lived snapshot");
+  ASSERT_EQ(snap.status, 0) << snap.text;
+  Out four = run(args);  // 4x MSAA, single-sampled impostor target: auto keeps the snapshots
+  ASSERT_EQ(four.status, 0) << four.text;
+  auto j1 = nlohmann::json::parse(last_json_line(one.text));
+  auto js = nlohmann::json::parse(last_json_line(snap.text));
+  auto j4 = nlohmann::json::parse(last_json_line(four.text));
+  EXPECT_EQ(j1["short_lived"], "geometry");
+  EXPECT_DOUBLE_EQ(j1["short_lived_geometry"].get<double>(), 1.0);
+  EXPECT_DOUBLE_EQ(j1["refresh_fraction"].get<double>(), 1.0);
+  EXPECT_DOUBLE_EQ(j1["snapshot_triangles_per_frame"].get<double>(), 0.0);
+  EXPECT_DOUBLE_EQ(j1["psnr_db"].get<double>(), 99.0);  // the same pictures
+  EXPECT_EQ(js["short_lived"], "snapshot");
+  EXPECT_FALSE(js.contains("short_lived_geometry"));
+  EXPECT_DOUBLE_EQ(js["refresh_fraction"].get<double>(), 1.0);
+  EXPECT_GT(js["snapshot_triangles_per_frame"].get<double>(), 0.0);
+  EXPECT_LT(js["psnr_db"].get<double>(), 40.0);
+  EXPECT_EQ(j4["short_lived"], "snapshot");
+  EXPECT_EQ(j4["impostor_target_samples"], 1);
+}
+
 // Impostor frames hold impostors only. With blended edges (the default) every sample of a pixel
 // gets the same colour, so the impostor path draws into a single-sampled target
 // (runtime::impostor_target_samples) and its frames are the ones a multisampled target gives:
@@ -236,7 +270,10 @@ TEST(FlowCli, ImpostorFramesNeedNoMultisampledTargetWhenBlended) {
   std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
   if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
   fs::path d = fs::temp_directory_path() / "bb_flow_cli_test_target";
-  const std::string args = "flow --model " + model + " --size 480x384 --posture 0.2 --view 4 --json -o " + d.string();
+  // (--short-lived snapshot: auto would draw short-lived characters as geometry in a target with
+  // the scene's samples only.)
+  const std::string args =
+      "flow --model " + model + " --size 480x384 --posture 0.2 --view 4 --short-lived snapshot --json -o " + d.string();
   Out single = run(args + " --frames 8");  // --impostor-edges auto: blend
   if (single.text.find("EGL") != std::string::npos && single.status != 0) GTEST_SKIP() << "no headless OpenGL: " << single.text;
   ASSERT_EQ(single.status, 0) << single.text;
@@ -318,7 +355,8 @@ TEST(FlowCli, BadFlagsAreErrors) {
                            "flow --screen-weighting tall", "flow --snapshot-scale half", "flow --impostor-target msaa",
                            "flow --scaling-frames 0", "flow --scaling --scaling-humans 20,0",
                            "flow --variants 17", "flow --model /nonexistent.glb --variants 2",
-                           "flow --flush-every 0", "flow --flush-every often", "flow --flush-every 12k"}) {
+                           "flow --flush-every 0", "flow --flush-every often", "flow --flush-every 12k",
+                           "flow --short-lived sometimes"}) {
     Out o = run(args);
     EXPECT_NE(o.status, 0) << args;
     EXPECT_NE(o.text.find("flow"), std::string::npos) << args << ": " << o.text;

@@ -709,6 +709,70 @@ TEST(FramePlanner, ShortLivedSnapshotsKeepThePlannersBox) {
   }
 }
 
+// ImpostorConfig::short_lived_as_geometry: a character whose snapshot is stale one impostor frame
+// on is drawn as geometry, and stays so until it turns by less than half the threshold (4
+// degrees) from one frame to the next; then a snapshot is taken and it is an impostor again.
+TEST(FramePlanner, ShortLivedCharactersAreDrawnAsGeometry) {
+  Model m = tiny_model();
+  for (bool on : {true, false}) {
+    Crowd crowd = standing_row(m, 3, 2.0f);
+    ImpostorConfig cfg = view_test_only(8.0f);
+    cfg.short_lived_as_geometry = on;
+    FramePlanner planner(m, cfg);
+    const SceneCamera cam = facing_camera(30.0f);
+    // What the middle character is drawn as: "geometry", "snapshot" (refreshed) or "kept".
+    auto plan = [&](float yaw_deg, RenderMode mode = RenderMode::kImpostor) {
+      crowd[1].yaw = glm::radians(yaw_deg);
+      const FrameStats st = planner.plan(crowd, cam, 0.0f, mode).stats;
+      EXPECT_EQ(st.short_lived_geometry, mode == RenderMode::kGeometry ? 0 : st.geometry);
+      EXPECT_EQ(st.geometry + st.impostors, 3);
+      if (mode == RenderMode::kGeometry) return std::string("geometry frame");
+      if (st.geometry == 1) return std::string("geometry");
+      return std::string(st.snapshots == 1 ? "snapshot" : st.snapshots == 0 ? "kept" : "all");
+    };
+    EXPECT_EQ(plan(0), "all");
+    if (on) {
+      EXPECT_EQ(plan(9), "geometry");   // its snapshot lived one frame
+      EXPECT_EQ(plan(18), "geometry");  // 9 degrees a frame
+      EXPECT_EQ(plan(18, RenderMode::kGeometry), "geometry frame");  // geometry frames do not count
+      EXPECT_EQ(plan(23), "geometry");  // 5 > 4 degrees
+      EXPECT_EQ(plan(26), "snapshot");  // 3 < 4 degrees: steady, its window is brought up to date
+      EXPECT_EQ(plan(26), "kept");
+      EXPECT_EQ(plan(35), "snapshot");  // its snapshot lived two frames: refreshed as usual
+      EXPECT_EQ(plan(44), "geometry");  // ... and this one would live one
+      planner.invalidate();
+      EXPECT_EQ(plan(44), "all");  // no usable snapshot: taken whatever
+    } else {
+      EXPECT_EQ(plan(9), "snapshot");  // every refresh a snapshot
+      EXPECT_EQ(plan(18), "snapshot");
+      EXPECT_EQ(plan(23), "kept");
+      EXPECT_EQ(plan(30), "snapshot");
+    }
+  }
+  // Part cards: the bending hinge with a posture threshold of 0 has both cards due every frame.
+  ImpostorConfig cfg;
+  cfg.part_cards = true;
+  cfg.short_lived_as_geometry = true;
+  cfg.cache.view_test = false;
+  cfg.cache.posture_threshold = 0.0f;
+  Model h = hinge_model();
+  Crowd one(h);
+  one.add(Character{glm::vec3(0, 0, -2), 0.0f, 1.0f, 0, 0.0f, 1.0f});
+  FramePlanner parts(h, cfg);
+  const SceneCamera cam = facing_camera(30.0f);
+  const float times[] = {0.0f, 0.1f, 0.2f, 0.2f, 0.2f, 0.3f, 0.4f};
+  const int cards[] = {2, 0, 0, 2, 2, 2, 0};     // drawn
+  const int taken[] = {2, 0, 0, 2, 0, 2, 0};     // refreshed
+  for (int f = 0; f < 7; ++f) {
+    const FrameStats st = parts.plan(one, cam, times[f], RenderMode::kImpostor).stats;
+    EXPECT_EQ(st.part_cards, cards[f]) << f;
+    EXPECT_EQ(st.part_snapshots, taken[f]) << f;
+    EXPECT_EQ(st.short_lived_geometry, cards[f] == 0 ? 1 : 0) << f;
+    EXPECT_EQ(st.geometry, cards[f] == 0 ? 1 : 0) << f;
+    EXPECT_EQ(st.atlas_fallbacks, 0) << f;
+  }
+}
+
 TEST(BodyParts, HingeSplitsIntoTwoPartsWithTheirOwnTriangles) {
   Model m = hinge_model();
   const auto parts = m.body_parts();

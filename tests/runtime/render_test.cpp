@@ -254,6 +254,51 @@ TEST(CrowdRender, FlushesLeaveTheFramesAsTheyWere) {
   }
 }
 
+// ImpostorConfig::short_lived_as_geometry with both thresholds 0: from the second impostor frame
+// every character is drawn as geometry, and the impostor frame is the geometry frame to the bit
+// (a single-sampled target, as the flow test bed gives both paths at --msaa 1).
+TEST(CrowdRender, ShortLivedCharactersAreTheGeometrysPicture) {
+  REQUIRE_GL();
+  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
+  auto m = load_model(path);
+  ASSERT_TRUE(m.ok());
+  Crowd crowd = walker_ring(*m);
+  const SceneCamera cam = ring_camera();
+  auto target = OffscreenTarget::create(640, 512);
+  ASSERT_TRUE(target.ok());
+  for (bool parts : {false, true}) {
+    ImpostorConfig cfg = refresh_always();
+    cfg.part_cards = parts;
+    cfg.short_lived_as_geometry = true;
+    FramePlanner planner(*m, cfg);
+    auto r = Renderer::create(*m, cfg);
+    ASSERT_TRUE(r.ok()) << r.error().message();
+    for (int f = 0; f < 3; ++f) {
+      const float t = 0.1f * static_cast<float>(f);
+      std::vector<std::uint8_t> frames[2];
+      for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) {
+        (*target)->bind(true);
+        const FramePlan& plan = planner.plan(crowd, cam, t, mode);
+        if (mode == RenderMode::kImpostor) {
+          EXPECT_EQ(plan.stats.short_lived_geometry, f == 0 ? 0 : 20) << f;
+          EXPECT_EQ(plan.stats.snapshots, f == 0 ? 20 : 0) << f;
+        }
+        (*r)->draw(plan);
+        frames[mode == RenderMode::kGeometry ? 0 : 1] = (*target)->read_rgba();
+      }
+      long covered = 0, differ = 0;
+      for (std::size_t i = 3; i < frames[0].size(); i += 4) covered += frames[0][i] > 0;
+      for (std::size_t i = 0; i < frames[0].size(); ++i) differ += frames[0][i] != frames[1][i];
+      EXPECT_GT(covered, 5000);
+      if (f == 0)
+        EXPECT_GT(differ, 100) << "parts " << parts;  // the first frame's are snapshots
+      else
+        EXPECT_EQ(differ, 0) << "parts " << parts << ", frame " << f;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace bb::runtime
 

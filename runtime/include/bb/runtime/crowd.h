@@ -214,6 +214,19 @@ struct ImpostorConfig {
   // PSNR +0.54 dB (test bed defaults), +0.28 dB (2 texels, blending, depth-corrected), the same
   // refresh fraction (0.203 -> 0.205) and speed.
   bool lead_cards = true;
+  // Short-lived snapshots drawn as geometry. A refresh draws the character into its window (what
+  // drawing it on screen costs), clears the window and draws its quad, so a snapshot that is drawn
+  // in one frame only never pays for itself. A character whose cache test fires in the impostor
+  // frame right after its last snapshot is drawn as skinned geometry instead, and stays geometry
+  // while the test fires from each frame to the next (its cached posture and view move on every
+  // frame, as if it had been refreshed); in the first frame where the test does not fire, a
+  // snapshot is taken and it is an impostor again. With both thresholds 0 every character is then
+  // geometry after its first snapshot. Whole impostors only (part cards are refreshed per card),
+  // and not with a refresh budget (which holds stale impostors back instead). The characters
+  // drawn as geometry go into the impostor frame's target, so this is off by default: they are
+  // the geometry's own picture only in a target with the scene's samples (`bodybuilder flow
+  // --short-lived auto` turns it on there).
+  bool short_lived_as_geometry = false;
 };
 inline constexpr float kLimbElongation = 2.0f, kLimbFlatness = 1.7f;
 // Index of `w`'s fitted rectangle (ImpostorConfig::fit_quads_to_coverage) in the renderer's list:
@@ -268,6 +281,9 @@ struct FrameStats {
   int atlas_fallbacks = 0;   // wanted an impostor, atlas full: drawn as geometry
   int posture_refreshes = 0, view_refreshes = 0, window_refreshes = 0, new_snapshots = 0;
   int deferred_refreshes = 0;  // stale impostors kept one more frame by CacheConfig::refresh_budget
+  // Characters drawn as geometry instead of a snapshot that would be drawn in one frame only
+  // (ImpostorConfig::short_lived_as_geometry; counted in `geometry`, not in `snapshots`).
+  int short_lived_geometry = 0;
   std::array<int, 8> geometry_per_lod{};  // characters per LOD level
   std::array<int, 8> impostors_per_window{};
   std::size_t geometry_triangles = 0;  // drawn this frame by the geometry path
@@ -340,6 +356,9 @@ class FramePlanner {
     glm::vec2 offset{0.0f};
     bool aligned = false;
     bool fitted = false;  // its quad is fitted to the coverage (found with the snapshot)
+    // ImpostorConfig::short_lived_as_geometry: drawn as geometry, its posture and view moved on
+    // without a snapshot, so the window holds an older picture (refreshed before it is drawn).
+    bool picture_behind = false;
     std::uint32_t taken = 0;  // impostor frame (FrameSetup::frame) the last snapshot was taken in
     glm::vec4 rect{-1, -1, 1, 1};  // part of the window the last snapshot used
     AtlasWindow window;
