@@ -520,7 +520,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "Flush the drawing to the GPU after every N indices drawn into a single-sampled target, geometry and snapshots alike: auto (every 10000 on a software rasterizer such as llvmpipe, which then rasterizes the first characters while it shades the next ones' vertices: in single-sampled geometry passes of 20000 and more and snapshot passes of 60000 and more; never on a GPU), off, or N (any pass)")
       ->capture_default_str();
   cmd->add_option("--short-lived", a->short_lived,
-                  "A character whose cache test fires again in the frame after its snapshot (a snapshot drawn once never pays): geometry (drawn as geometry until a frame passes without the test firing), snapshot (refreshed every time) or auto (geometry where the impostor path's target has the scene's samples, so that it is the geometry's picture; whole impostors without a refresh budget)")
+                  "A character whose cache test fires again in the frame after its snapshot (a snapshot drawn once never pays): geometry (drawn as geometry until a frame passes without the test firing), snapshot (refreshed every time) or auto (geometry where --msaa 1: the character is then the geometry's own picture, and a snapshot costs what drawing it does; not with a refresh budget)")
       ->capture_default_str();
   cmd->add_option("--planner-threads", a->planner_threads,
                   "Most threads planning each frame of crowds of 512 and more, one per 512 characters at most (0: one per hardware thread; the plan is the same)")

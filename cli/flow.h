@@ -67,9 +67,9 @@ struct FlowSettings {
   bool fit_quads = true;                    // ImpostorConfig::fit_quads_to_coverage
   bool time_stages = false;                 // GPU timestamps between the renderer's stages (gpu_ms_stages)
   int flush_every_indices = -1;             // DrawOptions::flush_every_indices (-1: auto, 0: never)
-  // ImpostorConfig::short_lived_as_geometry: -1 auto (on where the impostor path's target has the
-  // geometry path's samples, so a character drawn as geometry there is the geometry's picture),
-  // 0 off (every refresh a snapshot), 1 on.
+  // ImpostorConfig::short_lived_as_geometry: -1 auto (on where msaa is 1: both targets are then
+  // single-sampled, so a character drawn as geometry there is the geometry's picture, and a
+  // snapshot costs what drawing the character does), 0 off (every refresh a snapshot), 1 on.
   int short_lived = -1;
   unsigned planner_threads = 0;             // ImpostorConfig::planner_threads (0: every hardware thread)
   int clip = -1;                 // -1: a clip named like "walk" if any, else 0

@@ -82,10 +82,9 @@ TEST(FlowCli, WorstCaseRefreshesEveryImpostorEveryFrame) {
   EXPECT_NEAR(e["interior"]["share"].get<double>() + e["edge"]["share"].get<double>() +
                   e["one_only"]["share"].get<double>(),
               1.0, 1e-9);
-  // The alpha test instead of coverage: worse edges, same refreshes (snapshots: its target has the
-  // scene's samples, where --short-lived auto would draw these characters as geometry).
+  // The alpha test instead of coverage: worse edges, same refreshes.
   Out test = run("flow --model " + model + " --frames 4 --size 320x256 --posture 0 --view 0 --texels-per-pixel 2 "
-                 "--impostor-edges test --short-lived snapshot --json -o " + d.string());
+                 "--impostor-edges test --json -o " + d.string());
   ASSERT_EQ(test.status, 0) << test.text;
   auto jt = nlohmann::json::parse(last_json_line(test.text));
   EXPECT_EQ(jt["impostor_edges"], "test");
@@ -119,7 +118,7 @@ TEST(FlowCli, PartCardsBeatWholeImpostorsAtEightDegrees) {
   // 20-human test bed at 8 degrees).
   EXPECT_EQ(jw["impostor_edges"], "blend");
   EXPECT_EQ(jp["impostor_edges"], "blend");
-  Out parts_coverage = run(args + " --impostor-parts --impostor-edges coverage --short-lived snapshot");
+  Out parts_coverage = run(args + " --impostor-parts --impostor-edges coverage");
   ASSERT_EQ(parts_coverage.status, 0) << parts_coverage.text;
   auto jc = nlohmann::json::parse(last_json_line(parts_coverage.text));
   EXPECT_EQ(jc["impostor_edges"], "coverage");
@@ -228,11 +227,11 @@ TEST(FlowCli, OneTapCopiesASingleSampledScene) {
   EXPECT_LT(j4["psnr_db"].get<double>(), j1["psnr_db"].get<double>() - 8.0);
 }
 
-// --short-lived auto: where the impostor path's target has the scene's samples (--msaa 1 here), a
-// character whose snapshot would be drawn once is drawn as geometry. With both thresholds 0 every
+// --short-lived auto: in a single-sampled scene (--msaa 1) a character whose snapshot would be
+// drawn once is drawn as geometry. With both thresholds 0 every
 // character is then geometry after the warm-up's snapshots: the impostor frames are the geometry
 // frames, and every character counts as refreshed every frame.
-TEST(FlowCli, ShortLivedSnapshotsBecomeGeometryWhereTheTargetsMatch) {
+TEST(FlowCli, ShortLivedSnapshotsBecomeGeometryAtOneSample) {
   std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
   if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
   fs::path d = fs::temp_directory_path() / "bb_flow_cli_test_short";
@@ -242,7 +241,7 @@ TEST(FlowCli, ShortLivedSnapshotsBecomeGeometryWhereTheTargetsMatch) {
   ASSERT_EQ(one.status, 0) << one.text;
   Out snap = run(args + " --msaa 1 --short-lived snapshot");
   ASSERT_EQ(snap.status, 0) << snap.text;
-  Out four = run(args);  // 4x MSAA, single-sampled impostor target: auto keeps the snapshots
+  Out four = run(args + " --impostor-target scene");  // 4x MSAA: auto keeps the snapshots, whatever the target
   ASSERT_EQ(four.status, 0) << four.text;
   auto j1 = nlohmann::json::parse(last_json_line(one.text));
   auto js = nlohmann::json::parse(last_json_line(snap.text));
@@ -258,7 +257,9 @@ TEST(FlowCli, ShortLivedSnapshotsBecomeGeometryWhereTheTargetsMatch) {
   EXPECT_GT(js["snapshot_triangles_per_frame"].get<double>(), 0.0);
   EXPECT_LT(js["psnr_db"].get<double>(), 40.0);
   EXPECT_EQ(j4["short_lived"], "snapshot");
-  EXPECT_EQ(j4["impostor_target_samples"], 1);
+  EXPECT_EQ(j4["impostor_target_samples"], 4);
+  EXPECT_DOUBLE_EQ(j4["refresh_fraction"].get<double>(), 1.0);
+  EXPECT_GT(j4["snapshot_triangles_per_frame"].get<double>(), 0.0);
 }
 
 // Impostor frames hold impostors only. With blended edges (the default) every sample of a pixel
@@ -270,10 +271,7 @@ TEST(FlowCli, ImpostorFramesNeedNoMultisampledTargetWhenBlended) {
   std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
   if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
   fs::path d = fs::temp_directory_path() / "bb_flow_cli_test_target";
-  // (--short-lived snapshot: auto would draw short-lived characters as geometry in a target with
-  // the scene's samples only.)
-  const std::string args =
-      "flow --model " + model + " --size 480x384 --posture 0.2 --view 4 --short-lived snapshot --json -o " + d.string();
+  const std::string args = "flow --model " + model + " --size 480x384 --posture 0.2 --view 4 --json -o " + d.string();
   Out single = run(args + " --frames 8");  // --impostor-edges auto: blend
   if (single.text.find("EGL") != std::string::npos && single.status != 0) GTEST_SKIP() << "no headless OpenGL: " << single.text;
   ASSERT_EQ(single.status, 0) << single.text;

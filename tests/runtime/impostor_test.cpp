@@ -710,8 +710,8 @@ TEST(FramePlanner, ShortLivedSnapshotsKeepThePlannersBox) {
 }
 
 // ImpostorConfig::short_lived_as_geometry: a character whose snapshot is stale one impostor frame
-// on is drawn as geometry, and stays so until it turns by less than half the threshold (4
-// degrees) from one frame to the next; then a snapshot is taken and it is an impostor again.
+// on is drawn as geometry, and stays so while it turns by more than the threshold from one frame
+// to the next; then a snapshot is taken and it is an impostor again.
 TEST(FramePlanner, ShortLivedCharactersAreDrawnAsGeometry) {
   Model m = tiny_model();
   for (bool on : {true, false}) {
@@ -735,13 +735,12 @@ TEST(FramePlanner, ShortLivedCharactersAreDrawnAsGeometry) {
       EXPECT_EQ(plan(9), "geometry");   // its snapshot lived one frame
       EXPECT_EQ(plan(18), "geometry");  // 9 degrees a frame
       EXPECT_EQ(plan(18, RenderMode::kGeometry), "geometry frame");  // geometry frames do not count
-      EXPECT_EQ(plan(23), "geometry");  // 5 > 4 degrees
-      EXPECT_EQ(plan(26), "snapshot");  // 3 < 4 degrees: steady, its window is brought up to date
-      EXPECT_EQ(plan(26), "kept");
-      EXPECT_EQ(plan(35), "snapshot");  // its snapshot lived two frames: refreshed as usual
-      EXPECT_EQ(plan(44), "geometry");  // ... and this one would live one
+      EXPECT_EQ(plan(23), "snapshot");  // 5 < 8 degrees: its window is brought up to date
+      EXPECT_EQ(plan(23), "kept");
+      EXPECT_EQ(plan(32), "snapshot");  // its snapshot lived two frames: refreshed as usual
+      EXPECT_EQ(plan(41), "geometry");  // ... and this one would live one
       planner.invalidate();
-      EXPECT_EQ(plan(44), "all");  // no usable snapshot: taken whatever
+      EXPECT_EQ(plan(41), "all");  // no usable snapshot: taken whatever
     } else {
       EXPECT_EQ(plan(9), "snapshot");  // every refresh a snapshot
       EXPECT_EQ(plan(18), "snapshot");
