@@ -185,6 +185,7 @@ void add_stats(FrameStats& a, const FrameStats& b) {
   a.window_refreshes += b.window_refreshes;
   a.new_snapshots += b.new_snapshots;
   a.deferred_refreshes += b.deferred_refreshes;
+  a.short_lived_geometry += b.short_lived_geometry;
   for (std::size_t k = 0; k < a.geometry_per_lod.size(); ++k) a.geometry_per_lod[k] += b.geometry_per_lod[k];
   for (std::size_t k = 0; k < a.impostors_per_window.size(); ++k) a.impostors_per_window[k] += b.impostors_per_window[k];
   a.geometry_triangles += b.geometry_triangles;

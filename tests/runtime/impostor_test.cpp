@@ -402,16 +402,21 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
     crowd.add(Character{glm::vec3(1.5f * static_cast<float>(i % 64) - 48.0f, 0, -1.5f * static_cast<float>(i / 64)),
                         0.1f * static_cast<float>(i % 7), 1.0f, 0, 0.013f * static_cast<float>(i), 1.0f});
   ASSERT_GE(crowd.size(), 5 * FramePlanner::kCharactersPerThread);
-  for (int budget : {0, 40, 200}) {  // 200: the budget's refreshes planned on several threads too
+  // 200: the budget's refreshes planned on several threads too; -1: no budget, short-lived
+  // snapshots drawn as geometry (a view threshold of 3 degrees, which most turning characters pass
+  // every frame).
+  for (int budget : {0, 40, 200, -1}) {
     ImpostorConfig cfg;
-    cfg.cache.refresh_budget = budget;
+    cfg.cache.refresh_budget = std::max(budget, 0);
+    cfg.short_lived_as_geometry = budget < 0;
+    if (budget < 0) cfg.cache.view_threshold_deg = 3.0f;
     cfg.max_pages = 64;
     std::vector<FramePlanner> planners;
     for (unsigned threads : {1u, 2u, 5u}) {
       cfg.planner_threads = threads;
       planners.emplace_back(m, cfg);
     }
-    int changes = 0, deferred = 0, served = 0, most = 0;
+    int changes = 0, deferred = 0, served = 0, most = 0, short_lived = 0;
     for (int f = 0; f < 12; ++f) {
       // The camera comes closer for four frames (windows change size), then stays (the budget
       // then serves stale impostors).
@@ -425,6 +430,7 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
       deferred += ref.stats.deferred_refreshes;
       if (f > 4) served += ref.stats.view_refreshes > 0 ? ref.stats.snapshots : 0;
       if (ref.stats.deferred_refreshes > 0) most = std::max(most, ref.stats.snapshots);
+      short_lived += ref.stats.short_lived_geometry;
       for (std::size_t k = 1; k < planners.size(); ++k) {
         SCOPED_TRACE(testing::Message() << "budget " << budget << ", frame " << f << ", planner " << k);
         const FramePlan& p = planners[k].plan(crowd, cam, t, RenderMode::kAuto);
@@ -436,6 +442,8 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
         EXPECT_EQ(p.stats.impostors_per_window, ref.stats.impostors_per_window);
         EXPECT_DOUBLE_EQ(p.stats.quad_texels, ref.stats.quad_texels);
         EXPECT_EQ(p.stats.atlas_windows_used, ref.stats.atlas_windows_used);
+        EXPECT_EQ(p.stats.short_lived_geometry, ref.stats.short_lived_geometry);
+        EXPECT_EQ(p.stats.geometry, ref.stats.geometry);
       }
       EXPECT_EQ(ref.stats.impostors + ref.stats.geometry + ref.stats.culled, n);
     }
@@ -445,6 +453,7 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
     if (budget > 0) {
       EXPECT_GT(deferred, 0);
     }
+    EXPECT_EQ(short_lived > 0, budget < 0);
     if (budget >= 200) {  // a frame whose budget-reached refreshes took several threads
       EXPECT_GE(most, 2 * static_cast<int>(FramePlanner::kForcedPerThread));
     }
