@@ -296,6 +296,14 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
   const float depth = glm::dot(ta - camera.eye, fwd);
   const float pixels = 2.0f * radius * ppm1 / std::max(depth, 1e-3f);
 
+  // Drawn as skinned geometry, at the level the geometry path picks for its size on screen.
+  auto draw_geometry = [&] {
+    const int lod = std::min(lod_for(pixels, camera.height), lods - 1);
+    (*out.geometry)[lod].push_back(inst);
+    ++st.geometry;
+    ++st.geometry_per_lod[std::min(lod, 7)];
+    st.geometry_triangles += m.lods[lod].triangle_count();
+  };
   bool as_geometry = !impostor_mode || (mode == RenderMode::kAuto && pixels > switch_px);
   if (!as_geometry && parts_ > 1) {
     as_geometry = !plan_parts(i, ch, bc, f0, f1, blend, inst, ta, radius, pixels, camera, time, st);
@@ -365,103 +373,94 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
       } else if (!cs.valid) {
         ++st.new_snapshots;
       }
-      if (config_.short_lived_as_geometry && !must && !budget) {
+      if (config_.short_lived_as_geometry && refresh && !must && !budget && cs.taken + 1 == fs.frame) {
         // Geometry when its last snapshot is stale one frame on, and so on while the posture or
         // the view changes past the thresholds from each frame to the next (the cached state
         // moves on every frame); a snapshot at the first frame where neither does. Leaving it at
         // half the thresholds instead (hysteresis, so that fewer snapshots live one frame) was
         // slower: flow test bed, --msaa 1, posture 0.1, 40 frames, impostor frame 5.06-5.10 ms
         // without, 5.98 ms with, 5.25-5.28 ms with every refresh a snapshot.
-        if (refresh && cs.taken + 1 == fs.frame) {
-          cs.view = view;
-          cs.posture = posture;
-          cs.taken = fs.frame;
-          cs.picture_behind = true;
-          as_geometry = true;
-          ++st.short_lived_geometry;
-        }
+        cs.view = view;
+        cs.posture = posture;
+        cs.taken = fs.frame;
+        cs.picture_behind = true;
+        ++st.short_lived_geometry;
+        draw_geometry();
+        return;
       }
-      if (!as_geometry && cs.picture_behind) refresh = must = true;  // its window holds an older picture
-      if (!as_geometry) {
-        const AtlasWindow& win = cs.window;
-        const int slot = coverage_slot_of(win);
-        if (refresh && !must && budget && !out.forced) {
-          // Stale: drawn from its old snapshot unless the budget reaches it. Its refresh is worked
-          // out only then (end_frame plans it again, forced): most stale impostors wait.
-          out.pending->push_back(PendingRefresh{staleness, static_cast<std::uint32_t>(i),
-                                                static_cast<std::uint32_t>(out.billboards->size())});
-        } else if (refresh) {
-          std::optional<SnapshotCamera> aligned;
-          if (config_.aligned_snapshots)
-            aligned = make_aligned_snapshot_camera(camera, ta, radius, win.size, config_.texels_per_pixel);
-          if (aligned) sc = *aligned;
-          CacheState next = cs;
-          next.valid = true;
-          next.view = view;
-          next.posture = posture;
-          next.half_size = sc.half_size;
-          next.aligned = aligned.has_value();
-          next.fitted = fit_quad(cs.valid && !cs.picture_behind ? cs.taken : 0, fs.frame);
-          next.picture_behind = false;
-          next.taken = fs.frame;
-          next.offset = glm::vec2(glm::dot(sc.ta - ta, cam_right), glm::dot(sc.ta - ta, cam_up));
-          next.rect = glm::vec4(-1, -1, 1, 1);
-          glm::vec4 snap_rect = next.rect;
-          if (config_.tight_quads) {
-            // This frame's pose box.
-            const auto& b0 = bc.bounds[f0];
-            const auto& b1 = bc.bounds[f1];
-            const glm::vec3 lo = glm::min(b0[0], b1[0]) * ch.scale, hi = glm::max(b0[1], b1[1]) * ch.scale;
-            WindowRects r = window_rects(sc, win.size, [&](int k) {
-              const glm::vec3 p((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
-              return ch.position + glm::vec3(cy * p.x + sy * p.z, p.y, -sy * p.x + cy * p.z) - sc.ta;
-            });
-            if (parts.size() > 1) {
-              // Tighter: the union of the body parts' boxes, each carried by its bone (a limb's
-              // box lies along the limb), within the pose's box.
-              const glm::mat4 place = placement(ch);
-              glm::vec4 quad(1e30f, 1e30f, -1e30f, -1e30f), clear = quad;
-              for (const BodyPart& bp : parts) {
-                const glm::mat4 bone = place * palette_matrix(pal, np, bc, f0, f1, blend, bp.bone);
-                const WindowRects rr = window_rects(sc, win.size, [&](int k) {
-                  const glm::vec3 c((k & 1) ? bp.box_max.x : bp.box_min.x, (k & 2) ? bp.box_max.y : bp.box_min.y,
-                                    (k & 4) ? bp.box_max.z : bp.box_min.z);
-                  return glm::vec3(bone * glm::vec4(c, 1.0f)) - sc.ta;
-                });
-                quad = rect_union(quad, rr.quad);
-                clear = rect_union(clear, rr.snapshot);
-              }
-              r.quad = rect_intersection(r.quad, quad);
-              r.snapshot = rect_intersection(r.snapshot, clear);
+      if (cs.picture_behind) refresh = must = true;  // its window holds an older picture
+      const AtlasWindow& win = cs.window;
+      const int slot = coverage_slot_of(win);
+      if (refresh && !must && budget && !out.forced) {
+        // Stale: drawn from its old snapshot unless the budget reaches it. Its refresh is worked
+        // out only then (end_frame plans it again, forced): most stale impostors wait.
+        out.pending->push_back(PendingRefresh{staleness, static_cast<std::uint32_t>(i),
+                                              static_cast<std::uint32_t>(out.billboards->size())});
+      } else if (refresh) {
+        std::optional<SnapshotCamera> aligned;
+        if (config_.aligned_snapshots)
+          aligned = make_aligned_snapshot_camera(camera, ta, radius, win.size, config_.texels_per_pixel);
+        if (aligned) sc = *aligned;
+        CacheState next = cs;
+        next.valid = true;
+        next.view = view;
+        next.posture = posture;
+        next.half_size = sc.half_size;
+        next.aligned = aligned.has_value();
+        next.fitted = fit_quad(cs.valid && !cs.picture_behind ? cs.taken : 0, fs.frame);
+        next.picture_behind = false;
+        next.taken = fs.frame;
+        next.offset = glm::vec2(glm::dot(sc.ta - ta, cam_right), glm::dot(sc.ta - ta, cam_up));
+        next.rect = glm::vec4(-1, -1, 1, 1);
+        glm::vec4 snap_rect = next.rect;
+        if (config_.tight_quads) {
+          // This frame's pose box.
+          const auto& b0 = bc.bounds[f0];
+          const auto& b1 = bc.bounds[f1];
+          const glm::vec3 lo = glm::min(b0[0], b1[0]) * ch.scale, hi = glm::max(b0[1], b1[1]) * ch.scale;
+          WindowRects r = window_rects(sc, win.size, [&](int k) {
+            const glm::vec3 p((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
+            return ch.position + glm::vec3(cy * p.x + sy * p.z, p.y, -sy * p.x + cy * p.z) - sc.ta;
+          });
+          if (parts.size() > 1) {
+            // Tighter: the union of the body parts' boxes, each carried by its bone (a limb's
+            // box lies along the limb), within the pose's box.
+            const glm::mat4 place = placement(ch);
+            glm::vec4 quad(1e30f, 1e30f, -1e30f, -1e30f), clear = quad;
+            for (const BodyPart& bp : parts) {
+              const glm::mat4 bone = place * palette_matrix(pal, np, bc, f0, f1, blend, bp.bone);
+              const WindowRects rr = window_rects(sc, win.size, [&](int k) {
+                const glm::vec3 c((k & 1) ? bp.box_max.x : bp.box_min.x, (k & 2) ? bp.box_max.y : bp.box_min.y,
+                                  (k & 4) ? bp.box_max.z : bp.box_min.z);
+                return glm::vec3(bone * glm::vec4(c, 1.0f)) - sc.ta;
+              });
+              quad = rect_union(quad, rr.quad);
+              clear = rect_union(clear, rr.snapshot);
             }
-            next.rect = r.quad;
-            snap_rect = r.snapshot;
+            r.quad = rect_intersection(r.quad, quad);
+            r.snapshot = rect_intersection(r.snapshot, clear);
           }
-          const int slod = config_.snapshot_lod_from_screen ? std::min(lod_for(pixels, camera.height), lods - 1)
-                                                            : window_lod[win.size_class];
-          const float tpp = window_texels_per_pixel(win.size, sc.half_size, depth, ppm1);
-          cs = next;
-          (*out.snapshots)[slod].push_back(
-              snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect, slot, next.fitted, tpp));
-          ++st.snapshots;
-          st.snapshot_triangles += m.lods[slod].triangle_count();
-          ++*out.budget_used;
+          next.rect = r.quad;
+          snap_rect = r.snapshot;
         }
-        // The old snapshot is drawn where the character stands now (Ta moves with it).
-        out.billboards->push_back(billboard(ta, cs, page, slot, cam_right, cam_up));
-        st.quad_texels += rect_texels(cs.rect, win.size);
-        ++st.impostors;
-        ++st.impostors_per_window[win.size_class];
+        const int slod = config_.snapshot_lod_from_screen ? std::min(lod_for(pixels, camera.height), lods - 1)
+                                                          : window_lod[win.size_class];
+        const float tpp = window_texels_per_pixel(win.size, sc.half_size, depth, ppm1);
+        cs = next;
+        (*out.snapshots)[slod].push_back(
+            snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect, slot, next.fitted, tpp));
+        ++st.snapshots;
+        st.snapshot_triangles += m.lods[slod].triangle_count();
+        ++*out.budget_used;
       }
+      // The old snapshot is drawn where the character stands now (Ta moves with it).
+      out.billboards->push_back(billboard(ta, cs, page, slot, cam_right, cam_up));
+      st.quad_texels += rect_texels(cs.rect, win.size);
+      ++st.impostors;
+      ++st.impostors_per_window[win.size_class];
     }
   }
-  if (as_geometry) {
-    const int lod = std::min(lod_for(pixels, camera.height), lods - 1);
-    (*out.geometry)[lod].push_back(inst);
-    ++st.geometry;
-    ++st.geometry_per_lod[std::min(lod, 7)];
-    st.geometry_triangles += m.lods[lod].triangle_count();
-  }
+  if (as_geometry) draw_geometry();
 }
 
 std::size_t FramePlanner::begin_frame(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode) {

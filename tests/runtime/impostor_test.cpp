@@ -667,6 +667,22 @@ Model hinge_model() {
 // snapshot's texels that pays back only in the frames it is drawn again: a snapshot replacing one
 // that lived a single impostor frame keeps the planner's box; one replacing a longer-lived one, or
 // a character's first, is fitted. Geometry frames in between do not count.
+// One hinge playing its bending clip, 2 m in front of the origin.
+Crowd one_bending_hinge(const Model& h) {
+  Crowd one(h);
+  one.add(Character{glm::vec3(0, 0, -2), 0.0f, 1.0f, 0, 0.0f, 1.0f});
+  return one;
+}
+
+// Part cards with the posture test alone at 0: a bending hinge's cards are due every frame.
+ImpostorConfig hinge_cards_due_every_frame() {
+  ImpostorConfig cfg;
+  cfg.part_cards = true;
+  cfg.cache.view_test = false;
+  cfg.cache.posture_threshold = 0.0f;
+  return cfg;
+}
+
 TEST(FramePlanner, ShortLivedSnapshotsKeepThePlannersBox) {
   Model m = tiny_model();
   Crowd crowd = standing_row(m, 3, 2.0f);
@@ -701,14 +717,9 @@ TEST(FramePlanner, ShortLivedSnapshotsKeepThePlannersBox) {
   EXPECT_EQ(plan(45), "box+snapshot");
   // Part cards follow the same rule: a posture threshold of 0 refreshes the bending hinge's cards
   // every frame (the posture test is the character's).
-  ImpostorConfig cfg;
-  cfg.part_cards = true;
-  cfg.cache.view_test = false;
-  cfg.cache.posture_threshold = 0.0f;
   Model h = hinge_model();
-  Crowd one(h);
-  one.add(Character{glm::vec3(0, 0, -2), 0.0f, 1.0f, 0, 0.0f, 1.0f});
-  FramePlanner parts(h, cfg);
+  const Crowd one = one_bending_hinge(h);
+  FramePlanner parts(h, hinge_cards_due_every_frame());
   for (int f = 0; f < 4; ++f) {
     const FramePlan& p = parts.plan(one, cam, 0.1f * static_cast<float>(f), RenderMode::kImpostor);
     ASSERT_EQ(p.billboards.size(), 2u);
@@ -758,14 +769,10 @@ TEST(FramePlanner, ShortLivedCharactersAreDrawnAsGeometry) {
     }
   }
   // Part cards: the bending hinge with a posture threshold of 0 has both cards due every frame.
-  ImpostorConfig cfg;
-  cfg.part_cards = true;
-  cfg.short_lived_as_geometry = true;
-  cfg.cache.view_test = false;
-  cfg.cache.posture_threshold = 0.0f;
   Model h = hinge_model();
-  Crowd one(h);
-  one.add(Character{glm::vec3(0, 0, -2), 0.0f, 1.0f, 0, 0.0f, 1.0f});
+  const Crowd one = one_bending_hinge(h);
+  ImpostorConfig cfg = hinge_cards_due_every_frame();
+  cfg.short_lived_as_geometry = true;
   FramePlanner parts(h, cfg);
   const SceneCamera cam = facing_camera(30.0f);
   const float times[] = {0.0f, 0.1f, 0.2f, 0.2f, 0.2f, 0.3f, 0.4f};
