@@ -12,6 +12,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bb/runtime/crowd.h"
@@ -147,6 +148,7 @@ struct FlowArgs {
   std::string out = "out/flow", size = "1280x1024", mode = "both", posture = "0.4", view = "8", sweep;
   int humans = 20, frames = 120;
   bool json = false, scaling = false, distance_weighting = false;
+  bool targets = false;  // --targets: also the worst case and 5, 8, 17 degrees with these settings
   std::string screen_weighting = "32";
   float orbit = 0;
   int msaa = 4;
@@ -183,6 +185,24 @@ constexpr int kDefaultVariants = 3;
 // built into DIR/default.glb, DIR/default_v1.glb, ... (each reused when it is already there and
 // newer than the program). flow_model.cpp; bench_flow has none.
 Result<std::vector<std::string>> default_flow_models(const std::string& dir, int variants);
+
+// The targets (the paper's results, to be beaten), checked against flow reports (each a
+// run's JSON, as `flow --json` prints it): rows {"target", "measured", "met"}, "met" null where no
+// run was given for the target. Used by `flow --targets` and by the demo.
+struct TargetRuns {
+  // Runs that refresh every character every frame, by label ("posture 0"); met if every one is
+  // at most 10 % slower than geometry.
+  std::vector<std::pair<std::string, const nlohmann::ordered_json*>> worst;
+  // Runs at 5, 8 and 17 degrees with the posture test off, by threshold; `view_label` names them
+  // in the table, and `view_parts` (optional, reported only) holds the same with part cards.
+  std::vector<std::pair<double, const nlohmann::ordered_json*>> view, view_parts;
+  std::string view_label = "whole impostors";
+  // Runs at 8 degrees, by name: met if one has both 28 dB and 3x.
+  std::vector<std::pair<std::string, const nlohmann::ordered_json*>> quality;
+  const nlohmann::ordered_json* scaling = nullptr;  // a report's "scaling" list, or none
+  std::string scaling_hint = "not run here";       // the 10,000 row's text when it has no such crowd
+};
+nlohmann::ordered_json check_targets(const TargetRuns& runs);
 
 // Runs `bodybuilder flow` with these arguments: writes its files under a.out and, when given,
 // its JSON report into `report`. Returns the exit status.

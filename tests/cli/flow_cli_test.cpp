@@ -343,6 +343,48 @@ TEST(FlowCli, DefaultCrowdIsTheBodyAndItsVariants) {
   EXPECT_GT(k["geometry_triangles_per_frame"].get<double>(), 0);
 }
 
+// --targets: the targets with the user's own settings, each from a run of its own, and
+// the table agrees with those runs.
+TEST(FlowCli, TargetsAreCheckedWithTheGivenSettings) {
+  std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/RiggedSimple.gltf";
+  if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
+  fs::path d = fs::temp_directory_path() / "bb_flow_targets";
+  fs::remove_all(d);
+  Out o = run("flow --model " + model + " --frames 3 --humans 6 --size 320x256 --texels-per-pixel 2 --targets --json -o " +
+              d.string());
+  if (o.text.find("EGL") != std::string::npos && o.status != 0) GTEST_SKIP() << "no headless OpenGL: " << o.text;
+  ASSERT_EQ(o.status, 0) << o.text;
+  auto j = nlohmann::json::parse(last_json_line(o.text));
+  const auto& runs = j["targets_runs"];
+  const auto& worst = runs["worst"];
+  EXPECT_EQ(worst["posture"], 0.0);
+  EXPECT_EQ(worst["view_deg"], 0.0);
+  EXPECT_DOUBLE_EQ(worst["refresh_fraction"].get<double>(), 1.0);  // every character, every frame
+  ASSERT_EQ(runs["view"].size(), 3u);
+  const double degrees[3] = {5, 8, 17}, want[3] = {2, 3, 5};
+  for (int k = 0; k < 3; ++k) {
+    const auto& r = runs["view"][k];
+    EXPECT_EQ(r["posture"], "off");
+    EXPECT_EQ(r["view_deg"].get<double>(), degrees[k]);
+    EXPECT_EQ(r["humans"], 6);  // the user's settings
+    EXPECT_EQ(r["texels_per_pixel"].get<double>(), 2.0);
+    EXPECT_LT(r["refresh_fraction"].get<double>(), worst["refresh_fraction"].get<double>());
+  }
+  ASSERT_EQ(j["targets"].size(), 6u) << j["targets"].dump();
+  const auto& t = j["targets"];
+  EXPECT_EQ(t[0]["met"].get<bool>(), worst["ratio"].get<double>() <= 1.10) << t[0].dump();
+  for (int k = 0; k < 3; ++k)
+    EXPECT_EQ(t[1 + k]["met"].get<bool>(), runs["view"][k]["speedup"].get<double>() >= want[k]) << t[1 + k].dump();
+  const auto& eight = runs["view"][1];
+  EXPECT_EQ(t[4]["met"].get<bool>(), eight["psnr_db"].get<double>() >= 28.0 && eight["speedup"].get<double>() >= 3.0);
+  EXPECT_NE(t[4]["measured"].get<std::string>().find("whole impostors"), std::string::npos) << t[4].dump();
+  EXPECT_TRUE(t[5]["met"].is_null());  // no --scaling: 10,000 humans not run
+  EXPECT_NE(t[5]["measured"].get<std::string>().find("--scaling"), std::string::npos);
+  std::ifstream md(d / "targets.md");
+  const std::string table((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+  EXPECT_NE(table.find("| view threshold 17 degrees: at least 5x faster than geometry |"), std::string::npos) << table;
+}
+
 TEST(FlowCli, BadFlagsAreErrors) {
   for (const char* args : {"flow --size 12", "flow --mode fast", "flow --posture -1", "flow --view abc",
                            "flow --sweep size", "flow --model /nonexistent.glb --frames 1",
@@ -354,7 +396,7 @@ TEST(FlowCli, BadFlagsAreErrors) {
                            "flow --scaling-frames 0", "flow --scaling --scaling-humans 20,0",
                            "flow --variants 17", "flow --model /nonexistent.glb --variants 2",
                            "flow --flush-every 0", "flow --flush-every often", "flow --flush-every 12k",
-                           "flow --short-lived sometimes"}) {
+                           "flow --short-lived sometimes", "flow --targets --mode impostor"}) {
     Out o = run(args);
     EXPECT_NE(o.status, 0) << args;
     EXPECT_NE(o.text.find("flow"), std::string::npos) << args << ": " << o.text;
