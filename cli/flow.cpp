@@ -10,6 +10,7 @@
 #include <fstream>
 #include <iostream>
 #include <sstream>
+#include <utility>
 
 #include <nlohmann/json.hpp>
 
@@ -533,8 +534,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     tr.quality = {{tr.view_label, &runs["view"][1]}};
     if (report.contains("scaling")) tr.scaling = &report["scaling"];
     tr.scaling_hint = "not run (add --scaling)";
-    report["targets"] = check_targets(tr);
-    report["targets_runs"] = runs;
+    ordered_json rows = check_targets(tr);  // before the report gains keys (tr.scaling points into it)
+    report["targets"] = std::move(rows);
+    report["targets_runs"] = std::move(runs);
     const std::string md_path = (fs::path(a.out) / "targets.md").string();
     const std::string md = "# The paper's targets with these settings\n\n" + targets_markdown(report["targets"]);
     if (auto st = write_text(md_path, md); !st) return fail(st.error().message());
