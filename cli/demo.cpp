@@ -31,12 +31,6 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::ordered_json;
 
-std::string num(double v, int decimals = 2) {
-  char b[64];
-  std::snprintf(b, sizeof b, "%.*f", decimals, v);
-  return b;
-}
-
 // The targets (the paper's results, to be beaten), checked against this demo's own runs
 // (check_targets, flow.cpp): the worst case from both sweeps' threshold 0, the view targets from the
 // view sweep (part cards beside them), 28 dB from any 8-degree run with 3x, 10,000 humans from the
@@ -245,18 +239,18 @@ int run_demo(const std::string& dir, int frames, bool full) {
      << main_run["view_deg"].dump() << " degrees. Each frame is drawn by both paths; a frame's time runs until the GPU "
      << "has finished it.\n\n";
   md << "| path | ms per frame |\n|---|---|\n";
-  md << "| geometry (GPU skinning, LODs, instancing) | " << num(main_run["geometry_ms"].get<double>()) << " |\n";
-  md << "| impostors | " << num(main_run["impostor_ms"].get<double>()) << " |\n\n";
-  md << "**Speed-up " << num(ratio > 0 ? 1 / ratio : 0) << "x** (impostor time / geometry time = " << num(ratio, 3)
-     << "), refresh fraction " << num(main_run["refresh_fraction"].get<double>(), 3) << "; impostor frames against geometry "
-     << "frames of the same instant: PSNR " << num(main_run["psnr_db"].get<double>(), 1) << " dB over covered pixels, SSIM "
-     << num(main_run["ssim"].get<double>(), 3) << ".\n\n";
+  md << "| geometry (GPU skinning, LODs, instancing) | " << decimal(main_run["geometry_ms"].get<double>()) << " |\n";
+  md << "| impostors | " << decimal(main_run["impostor_ms"].get<double>()) << " |\n\n";
+  md << "**Speed-up " << decimal(ratio > 0 ? 1 / ratio : 0) << "x** (impostor time / geometry time = " << decimal(ratio, 3)
+     << "), refresh fraction " << decimal(main_run["refresh_fraction"].get<double>(), 3) << "; impostor frames against geometry "
+     << "frames of the same instant: PSNR " << decimal(main_run["psnr_db"].get<double>(), 1) << " dB over covered pixels, SSIM "
+     << decimal(main_run["ssim"].get<double>(), 3) << ".\n\n";
   auto sweep_table = [&](const ordered_json& sw, const char* what) {
     md << "| " << what << " | impostor/geometry | speed-up | refresh fraction | PSNR (dB) | SSIM |\n|---|---|---|---|---|---|\n";
     for (const auto& r : sw)
-      md << "| " << r["threshold"].dump() << " | " << num(r["ratio"].get<double>(), 3) << " | "
-         << num(r["speedup"].get<double>()) << "x | " << num(r["refresh_fraction"].get<double>(), 3) << " | "
-         << num(r["psnr_db"].get<double>(), 1) << " | " << num(r["ssim"].get<double>(), 3) << " |\n";
+      md << "| " << r["threshold"].dump() << " | " << decimal(r["ratio"].get<double>(), 3) << " | "
+         << decimal(r["speedup"].get<double>()) << "x | " << decimal(r["refresh_fraction"].get<double>(), 3) << " | "
+         << decimal(r["psnr_db"].get<double>(), 1) << " | " << decimal(r["ssim"].get<double>(), 3) << " |\n";
     md << "\n";
   };
   md << "## The paper's graphs\n\nPosture threshold, view test off (`sweep_posture.png`, `sweep_posture_quality.png`):\n\n";
@@ -264,26 +258,22 @@ int run_demo(const std::string& dir, int frames, bool full) {
   md << "View threshold in degrees, posture test off (`sweep_view.png`, `sweep_view_quality.png`):\n\n";
   sweep_table(view["sweep"], "view threshold");
   md << "## Against the paper's targets\n\nThe targets this project set itself (the paper's results, to be beaten), "
-        "checked against this demo's runs on this device:\n\n| target | measured | met |\n|---|---|---|\n";
-  for (const auto& t : all["targets"])
-    md << "| " << t["target"].get<std::string>() << " | " << t["measured"].get<std::string>() << " | "
-       << (t["met"].is_null() ? "-" : t["met"].get<bool>() ? "yes" : "**no**") << " |\n";
-  md << "\n";
+        "checked against this demo's runs on this device:\n\n" << targets_markdown(all["targets"]) << "\n";
   md << "## Part cards (`parts/`)\n\nThe paper's future work: one card per body part (" << parts["impostor_parts"].size()
      << " parts), each carried by its bone between snapshots, so limbs keep walking without a refresh. View "
         "threshold 8 degrees, posture test off:\n\n| impostors | speed-up | refresh fraction | PSNR (dB) | SSIM |\n"
         "|---|---|---|---|---|\n";
   for (const auto& r : view["sweep"])
     if (r["threshold"].get<double>() == 8.0)
-      md << "| whole (one card per character) | " << num(r["speedup"].get<double>()) << "x | "
-         << num(r["refresh_fraction"].get<double>(), 3) << " | " << num(r["psnr_db"].get<double>(), 1) << " | "
-         << num(r["ssim"].get<double>(), 3) << " |\n";
+      md << "| whole (one card per character) | " << decimal(r["speedup"].get<double>()) << "x | "
+         << decimal(r["refresh_fraction"].get<double>(), 3) << " | " << decimal(r["psnr_db"].get<double>(), 1) << " | "
+         << decimal(r["ssim"].get<double>(), 3) << " |\n";
   for (auto [label, run] : {std::pair{"part cards (`--impostor-parts`, blended edges; refresh counts cards)", &parts},
                             std::pair{"part cards, depth-corrected (`--card-depth on`)", &parts_depth},
                             std::pair{"part cards, best quality (`--texels-per-pixel 2 --card-depth pass`)", &parts_quality}})
-    md << "| " << label << " | " << num((*run)["speedup"].get<double>()) << "x | "
-       << num((*run)["refresh_fraction"].get<double>(), 3) << " | " << num((*run)["psnr_db"].get<double>(), 1) << " | "
-       << num((*run)["ssim"].get<double>(), 3) << " |\n";
+    md << "| " << label << " | " << decimal((*run)["speedup"].get<double>()) << "x | "
+       << decimal((*run)["refresh_fraction"].get<double>(), 3) << " | " << decimal((*run)["psnr_db"].get<double>(), 1) << " | "
+       << decimal((*run)["ssim"].get<double>(), 3) << " |\n";
   md << "\n";
   md << "Cards are taken along their part's mean line of sight over their coming life (`--card-lead on`, the "
         "default). Depth-corrected cards find, per pixel, the snapshot texel on the pixel's own eye ray; the "
@@ -300,9 +290,9 @@ int run_demo(const std::string& dir, int frames, bool full) {
     for (const auto& w : view["sweep"])
       if (w["threshold"] == p["threshold"]) {
         const double t = p["threshold"].get<double>();
-        md << "| " << p["threshold"].dump() << " | " << num(w["speedup"].get<double>()) << "x | "
-           << num(w["psnr_db"].get<double>(), 1) << " | " << num(p["speedup"].get<double>()) << "x | "
-           << num(p["refresh_fraction"].get<double>(), 3) << " | " << num(p["psnr_db"].get<double>(), 1) << " |\n";
+        md << "| " << p["threshold"].dump() << " | " << decimal(w["speedup"].get<double>()) << "x | "
+           << decimal(w["psnr_db"].get<double>(), 1) << " | " << decimal(p["speedup"].get<double>()) << "x | "
+           << decimal(p["refresh_fraction"].get<double>(), 3) << " | " << decimal(p["psnr_db"].get<double>(), 1) << " |\n";
         whole_x.x.push_back(t);
         whole_x.y.push_back(w["speedup"].get<double>());
         parts_x.x.push_back(t);
@@ -346,9 +336,9 @@ int run_demo(const std::string& dir, int frames, bool full) {
   for (const auto* r : {&budget_free, &budget_capped}) {
     const auto& sp = (*r)["frame_ms_spread"]["impostor"];
     md << "| " << (r->contains("refresh_budget") ? std::to_string((*r)["refresh_budget"].get<int>()) : std::string("none"))
-       << " | " << num((*r)["impostor_ms"].get<double>()) << " | " << num(sp["p95"].get<double>()) << " | "
-       << num(sp["max"].get<double>()) << " | " << num(sp["sd"].get<double>()) << " | " << (*r)["snapshots_max"].get<int>()
-       << " | " << num((*r)["refresh_fraction"].get<double>(), 3) << " | " << num((*r)["psnr_db"].get<double>(), 1) << " |\n";
+       << " | " << decimal((*r)["impostor_ms"].get<double>()) << " | " << decimal(sp["p95"].get<double>()) << " | "
+       << decimal(sp["max"].get<double>()) << " | " << decimal(sp["sd"].get<double>()) << " | " << (*r)["snapshots_max"].get<int>()
+       << " | " << decimal((*r)["refresh_fraction"].get<double>(), 3) << " | " << decimal((*r)["psnr_db"].get<double>(), 1) << " |\n";
   }
   md << "\n";
   md << "## Crowd size (`scaling.png`)\n\nPosture threshold " << main_run["posture"].dump() << ", view "
@@ -359,14 +349,14 @@ int run_demo(const std::string& dir, int frames, bool full) {
         "| humans | geometry ms | impostor ms | speed-up | refresh fraction | without screen weighting: impostor ms | "
         "speed-up | refresh fraction |\n|---|---|---|---|---|---|---|---|\n";
   for (const auto& r : scaling["scaling"]) {
-    md << "| " << r["humans"].get<int>() << " | " << num(r["geometry_ms"].get<double>()) << " | "
-       << num(r["impostor_ms"].get<double>()) << " | " << num(r["speedup"].get<double>()) << "x | "
-       << num(r["refresh_fraction"].get<double>(), 3) << " | ";
+    md << "| " << r["humans"].get<int>() << " | " << decimal(r["geometry_ms"].get<double>()) << " | "
+       << decimal(r["impostor_ms"].get<double>()) << " | " << decimal(r["speedup"].get<double>()) << "x | "
+       << decimal(r["refresh_fraction"].get<double>(), 3) << " | ";
     if (r.contains("unweighted")) {
       const auto& u = r["unweighted"];
       const double ur = u["ratio"].get<double>();
-      md << num(u["impostor_ms"].get<double>()) << " | " << num(ur > 0 ? 1 / ur : 0) << "x | "
-         << num(u["refresh_fraction"].get<double>(), 3) << " |\n";
+      md << decimal(u["impostor_ms"].get<double>()) << " | " << decimal(ur > 0 ? 1 / ur : 0) << "x | "
+         << decimal(u["refresh_fraction"].get<double>(), 3) << " |\n";
     } else {
       md << "- | - | - |\n";
     }
@@ -396,7 +386,7 @@ int run_demo(const std::string& dir, int frames, bool full) {
      << "`parts/frame_*`, `parts_depth/frame_*`, `parts_quality/frame_*`: the same with part cards; `budget/`: the refresh-budget run's report and frames\n"
      << "- `sweep_*.png`, `view_whole_vs_parts*.png`, `scaling.png`, `parts/sweep_view*.png`: the charts; `*.csv`, "
      << "`*.json`: their numbers; `demo.json`: everything\n\n"
-     << "Finished in " << num(seconds, 1) << " s.\n";
+     << "Finished in " << decimal(seconds, 1) << " s.\n";
   std::string report = (fs::path(dir) / "report.md").string();
   if (auto st = write_atomic(report, md.str()); !st) {
     std::cerr << "bodybuilder demo: " << st.error().message() << "\n";

@@ -138,13 +138,13 @@ bool parse_threshold(const std::string& v, bool* on, float* value) {
   return true;
 }
 
-std::string fixed(double v, int decimals = 2) {
+}  // namespace
+
+std::string decimal(double v, int decimals) {
   char b[64];
   std::snprintf(b, sizeof b, "%.*f", decimals, v);
   return b;
 }
-
-}  // namespace
 
 ordered_json check_targets(const TargetRuns& runs) {
   ordered_json rows = ordered_json::array();
@@ -156,7 +156,7 @@ ordered_json check_targets(const TargetRuns& runs) {
     bool met = true;
     for (std::size_t k = 0; k < runs.worst.size(); ++k) {
       const double ratio = (*runs.worst[k].second)["ratio"].get<double>();
-      measured += std::string(k ? ", " : " ") + fixed(ratio, 3) + " (" + runs.worst[k].first + ")";
+      measured += std::string(k ? ", " : " ") + decimal(ratio, 3) + " (" + runs.worst[k].first + ")";
       met = met && ratio <= 1.10;
     }
     row("worst case (every character refreshed every frame): impostors at most 10 % slower than geometry", measured, met);
@@ -168,9 +168,9 @@ ordered_json check_targets(const TargetRuns& runs) {
   };
   for (auto [deg, want] : {std::pair{5.0, 2.0}, std::pair{8.0, 3.0}, std::pair{17.0, 5.0}})
     if (const ordered_json* r = at(runs.view, deg)) {
-      std::string measured = fixed((*r)["speedup"].get<double>()) + "x (" + runs.view_label + ")";
-      if (const ordered_json* p = at(runs.view_parts, deg)) measured += "; part cards " + fixed((*p)["speedup"].get<double>()) + "x";
-      row("view threshold " + fixed(deg, 0) + " degrees: at least " + fixed(want, 0) + "x faster than geometry", measured,
+      std::string measured = decimal((*r)["speedup"].get<double>()) + "x (" + runs.view_label + ")";
+      if (const ordered_json* p = at(runs.view_parts, deg)) measured += "; part cards " + decimal((*p)["speedup"].get<double>()) + "x";
+      row("view threshold " + decimal(deg, 0) + " degrees: at least " + decimal(want, 0) + "x faster than geometry", measured,
           (*r)["speedup"].get<double>() >= want);
     }
   // 28 dB at 8 degrees, at the 3x that 8 degrees asks for.
@@ -180,7 +180,7 @@ ordered_json check_targets(const TargetRuns& runs) {
     for (const auto& [name, run] : runs.quality) {
       const double db = (*run)["psnr_db"].get<double>(), x = (*run)["speedup"].get<double>();
       met |= db >= 28.0 && x >= 3.0;
-      measured += (measured.empty() ? "" : "; ") + name + " " + fixed(db, 1) + " dB at " + fixed(x) + "x";
+      measured += (measured.empty() ? "" : "; ") + name + " " + decimal(db, 1) + " dB at " + decimal(x) + "x";
     }
     row("view threshold 8 degrees: PSNR at least 28 dB against geometry (at the 3x of 8 degrees)", measured, met);
   }
@@ -190,18 +190,15 @@ ordered_json check_targets(const TargetRuns& runs) {
     for (const auto& r : *runs.scaling)
       if (r["humans"].get<int>() == 10000) {
         ran_10k = true;
-        std::string measured = fixed(r["speedup"].get<double>()) + "x";
+        std::string measured = decimal(r["speedup"].get<double>()) + "x";
         if (r.contains("unweighted"))
-          measured += " (" + fixed(1.0 / r["unweighted"]["ratio"].get<double>()) + "x without the screen weighting)";
+          measured += " (" + decimal(1.0 / r["unweighted"]["ratio"].get<double>()) + "x without the screen weighting)";
         row(crowd, measured, r["speedup"].get<double>() >= 10.0);
       }
   if (!ran_10k) rows.push_back({{"target", crowd}, {"measured", runs.scaling_hint}, {"met", nullptr}});
   return rows;
 }
 
-namespace {
-
-// The targets table as Markdown.
 std::string targets_markdown(const ordered_json& rows) {
   std::string md = "| target | measured | met |\n|---|---|---|\n";
   for (const auto& t : rows)
@@ -209,8 +206,6 @@ std::string targets_markdown(const ordered_json& rows) {
           (t["met"].is_null() ? "-" : t["met"].get<bool>() ? "yes" : "**no**") + " |\n";
   return md;
 }
-
-}  // namespace
 
 int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   FlowSettings s;
@@ -522,6 +517,15 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     runs["worst"] = *worst;
     runs["view"] = ordered_json::array();
     for (float deg : {5.0f, 8.0f, 17.0f}) {
+      // --sweep view has run this threshold with the same settings already.
+      const ordered_json* swept = nullptr;
+      if (a.sweep == "view")
+        for (const auto& e : report["sweep"])
+          if (e["threshold"].get<double>() == deg) swept = &e;
+      if (swept) {
+        runs["view"].push_back(*swept);
+        continue;
+      }
       auto r = run(false, 0.0f, true, deg);
       if (!r) return fail(r.error().message());
       (*r)["threshold"] = deg;
@@ -653,7 +657,8 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_flag("--targets", a->targets,
                 "Also check the paper's targets with these settings: both thresholds 0 (at most 10 % slower than "
                 "geometry), 5, 8 and 17 degrees with the posture test off (2x, 3x, 5x; 28 dB at 8), 10,000 humans "
-                "where --scaling runs them (10x); four more runs, into targets.md and the report's \"targets\"");
+                "where --scaling runs them (10x); up to four more runs (--sweep view's serve), into targets.md and the "
+                "report's \"targets\"");
   cmd->add_option("--scaling-humans", a->scaling_list, "Crowd sizes of --scaling")->capture_default_str();
   cmd->add_option("--scaling-frames", a->scaling_frames, "Frames per crowd size of --scaling")
       ->check(CLI::Range(1, 100000))

@@ -203,6 +203,10 @@ struct TargetRuns {
   std::string scaling_hint = "not run here";       // the 10,000 row's text when it has no such crowd
 };
 nlohmann::ordered_json check_targets(const TargetRuns& runs);
+// check_targets' rows as a Markdown table.
+std::string targets_markdown(const nlohmann::ordered_json& rows);
+// `v` with `decimals` digits after the point, for reports.
+std::string decimal(double v, int decimals = 2);
 
 // Runs `bodybuilder flow` with these arguments: writes its files under a.out and, when given,
 // its JSON report into `report`. Returns the exit status.

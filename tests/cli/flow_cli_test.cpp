@@ -383,6 +383,18 @@ TEST(FlowCli, TargetsAreCheckedWithTheGivenSettings) {
   std::ifstream md(d / "targets.md");
   const std::string table((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
   EXPECT_NE(table.find("| view threshold 17 degrees: at least 5x faster than geometry |"), std::string::npos) << table;
+  // With --sweep view the sweep's own 5, 8 and 17 degrees serve (not run again).
+  Out sw = run("flow --model " + model + " --frames 3 --humans 6 --size 320x256 --sweep view --targets --json -o " +
+               d.string());
+  ASSERT_EQ(sw.status, 0) << sw.text;
+  auto js = nlohmann::json::parse(last_json_line(sw.text));
+  for (int k = 0; k < 3; ++k) {
+    const auto& r = js["targets_runs"]["view"][k];
+    bool found = false;
+    for (const auto& e : js["sweep"])
+      if (e["threshold"].get<double>() == degrees[k]) found = e == r;
+    EXPECT_TRUE(found) << degrees[k];
+  }
 }
 
 TEST(FlowCli, BadFlagsAreErrors) {
