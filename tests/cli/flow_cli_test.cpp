@@ -227,6 +227,44 @@ TEST(FlowCli, OneTapCopiesASingleSampledScene) {
   EXPECT_LT(j4["psnr_db"].get<double>(), j1["psnr_db"].get<double>() - 8.0);
 }
 
+// In a 4x multisampled scene the impostor shader's taps give an edge pixel its coverage. Two taps
+// on the diagonal come close to four, and nearer to the geometry's frame than one tap; auto takes
+// two for whole impostors at one texel per pixel, four for part cards and finer windows, one for a
+// single-sampled scene. Every impostor refreshed, so the frames differ only in the taps.
+TEST(FlowCli, TwoTapsComeCloseToFourInAMultisampledScene) {
+  const std::string data = std::string(BB_SHARED_DATA_DIR) + "/gltf/";
+  if (!fs::exists(data + "CesiumMan.glb")) GTEST_SKIP() << "../shared/data is absent";
+  fs::path d = fs::temp_directory_path() / "bb_flow_cli_test_two_taps";
+  for (const char* model : {"CesiumMan.glb", "RiggedSimple.gltf"}) {
+    const std::string args = "flow --model " + data + model + " --frames 4 --size 640x512 --posture 0 --view 0 " +
+                             "--json -o " + d.string();
+    double psnr[5] = {};
+    for (int taps : {1, 2, 4}) {
+      Out o = run(args + " --impostor-taps " + std::to_string(taps));
+      if (o.text.find("EGL") != std::string::npos && o.status != 0) GTEST_SKIP() << "no headless OpenGL: " << o.text;
+      ASSERT_EQ(o.status, 0) << o.text;
+      auto j = nlohmann::json::parse(last_json_line(o.text));
+      EXPECT_EQ(j["impostor_taps"], taps);
+      EXPECT_EQ(j["msaa"], 4);
+      EXPECT_DOUBLE_EQ(j["refresh_fraction"].get<double>(), 1.0);
+      psnr[taps] = j["psnr_db"].get<double>();
+    }
+    std::printf("%s, 4x MSAA, every impostor fresh: one tap %.2f dB, two %.2f dB, four %.2f dB\n", model, psnr[1],
+                psnr[2], psnr[4]);
+    EXPECT_GT(psnr[2], psnr[1] + 0.2) << model;
+    EXPECT_GT(psnr[2], psnr[4] - 0.5) << model;
+    EXPECT_LT(psnr[2], psnr[4] + 0.1) << model;
+  }
+  const std::string rs = "flow --model " + data + "RiggedSimple.gltf --frames 2 --size 320x256 --json -o " + d.string();
+  const std::pair<std::string, int> autos[] = {
+      {"", 2}, {" --impostor-parts", 4}, {" --texels-per-pixel 2", 4}, {" --msaa 1", 1}, {" --impostor-taps 4", 4}};
+  for (const auto& [flags, taps] : autos) {
+    Out o = run(rs + flags);
+    ASSERT_EQ(o.status, 0) << flags << ": " << o.text;
+    EXPECT_EQ(nlohmann::json::parse(last_json_line(o.text))["impostor_taps"], taps) << flags;
+  }
+}
+
 // --short-lived auto: in a single-sampled scene (--msaa 1) a character whose snapshot would be
 // drawn once is drawn as geometry. With both thresholds 0 every
 // character is then geometry after the warm-up's snapshots: the impostor frames are the geometry
@@ -402,7 +440,7 @@ TEST(FlowCli, BadFlagsAreErrors) {
                            "flow --sweep size", "flow --model /nonexistent.glb --frames 1",
                            "flow --impostor-edges soft", "flow --snapshot-lod best", "flow --snapshot-camera fisheye",
                            "flow --refresh-budget -1", "flow --limb-cards round", "flow --snapshot-grid texels",
-                           "flow --snapshot-samples 3", "flow --impostor-taps 2", "flow --quad-fit hull", "flow --planner-threads -1",
+                           "flow --snapshot-samples 3", "flow --impostor-taps 3", "flow --quad-fit hull", "flow --planner-threads -1",
                            "flow --card-depth maybe", "flow --card-lead maybe", "flow --screen-weighting 0",
                            "flow --screen-weighting tall", "flow --snapshot-scale half", "flow --impostor-target msaa",
                            "flow --scaling-frames 0", "flow --scaling --scaling-humans 20,0",

@@ -121,13 +121,20 @@ struct ImpostorConfig {
   // pixels do; the impostor shader then takes one tap per pixel. 1: single-sampled, the impostor
   // shader takes impostor_taps taps per pixel (four: at the 4x sample positions, for the coverage).
   int snapshot_samples = 1;
-  // Taps of the impostor shader per pixel, with snapshot_samples 1 (4 or 1). 4: at the 4x sample
+  // Taps of the impostor shader per pixel, with snapshot_samples 1 (4, 2 or 1). 4: at the 4x sample
   // pattern, averaged: the pixel's coverage as a multisampled scene's pixel has it. 1: one
   // bilinear tap at the pixel's centre, for a single-sampled scene, whose pixels hold no coverage
   // to match. Flow test bed (20 humans, llvmpipe, one sample): one tap is 1.05 times the
   // geometry's frame time with every impostor refreshed (four: 1.18), 4.9x against 3.7x at 8
   // degrees, for 0.2-0.3 dB; at 4x MSAA four taps keep 0.3 dB on whole impostors and 0.75 dB on
   // part cards.
+  // 2: two bilinear taps 0.2 pixels out on the anti-diagonal, averaged: nearly the coverage of four
+  // at one texel per pixel, for half the fetches. Flow test bed (4x MSAA, 1 texel per pixel, 30
+  // frames, twenty-third session), whole impostors against four taps: every impostor fresh -0.03 dB
+  // on our crowd (Fox -0.17, RiggedSimple -0.14, CesiumMan +0.02), 8 and 17 degrees -0.07 to -0.15
+  // dB, and the impostor frame 5-25 % shorter (the Fox at 17 degrees 4.8x -> 6.3x geometry's speed);
+  // part cards at 8 degrees -0.2 to -0.33 dB; at 2 texels per pixel the taps skip texels (-0.4 dB).
+  // Other values count as 4.
   int impostor_taps = 4;
   // The snapshot's mesh LOD: the level the geometry path would draw for the character at its
   // size on screen now (true: the impostor shows the same silhouette as the geometry it
