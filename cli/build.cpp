@@ -114,6 +114,10 @@ int run(BuildArgs a) {
     std::cerr << "bodybuilder build: --variants-only needs --variants N with N >= 1\n";
     return 2;
   }
+  if (a.jobs < 0) {
+    std::cerr << "bodybuilder build: --jobs: expected 0 (one per core) or more (got " << a.jobs << ")\n";
+    return 2;
+  }
   if (a.variants < 0) {
     std::cerr << "bodybuilder build: --variants: expected >= 0\n";
     return 2;
@@ -201,7 +205,9 @@ void add_build_command(CLI::App& app, int* status) {
   cmd->add_option("-o,--output", a->out, "Output folder: one DIR/<name>.glb per body")->capture_default_str();
   cmd->add_option("--variants", a->variants, "Also write N seeded variants of each body")->capture_default_str();
   cmd->add_flag("--variants-only", a->variants_only, "Write only the variants, not the bodies they vary");
-  cmd->add_option("--seed", a->seed, "Seed of the first variant (then seed+1, ...)")->capture_default_str();
+  cmd->add_option("--seed", a->seed, "Seed of the first variant (then seed+1, ...), >= 0")
+      ->capture_default_str()
+      ->check(whole_number());
   cmd->add_option("--motion", a->motions, "BVH clips to retarget and add as animations");
   cmd->add_option("--lods", a->lods, "Levels of detail, 2..8")->capture_default_str();
   cmd->add_flag("--per-lod-files", a->per_lod, "Also write DIR/<name>_lod<k>.glb, one level each");

@@ -3,6 +3,8 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
+#include <cstdlib>
 #include <functional>
 #include <iostream>
 #include <vector>
@@ -27,6 +29,41 @@ inline std::vector<CommandEntry>& command_registry() {
 struct Registrar {
   Registrar(int order, AddCommand add) { command_registry().push_back({order, add}); }
 };
+
+// A number option's check: finite and within [lo, hi] (CLI::Range lets NaN through, and "inf" or
+// "nan" would reach the camera or the clip time). Text that is not a number is left to the
+// option's conversion, whose error names it.
+inline CLI::Validator finite_number(double lo = -HUGE_VAL, double hi = HUGE_VAL) {
+  return CLI::Validator(
+      [lo, hi](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double x = std::strtod(text.c_str(), &end);
+        if (end == text.c_str() || *end != '\0') return {};
+        if (std::isfinite(x) && x >= lo && x <= hi) return {};
+        std::string want = "a finite number";
+        auto num = [](double v) {
+          std::string t = std::to_string(v);
+          t.erase(t.find_last_not_of('0') + 1);
+          if (!t.empty() && t.back() == '.') t.pop_back();
+          return t;
+        };
+        if (std::isfinite(lo) && std::isfinite(hi)) want = "a number from " + num(lo) + " to " + num(hi);
+        else if (std::isfinite(lo)) want = "a finite number >= " + num(lo);
+        else if (std::isfinite(hi)) want = "a finite number <= " + num(hi);
+        return "expected " + want + " (got \"" + text + "\")";
+      },
+      "NUMBER");
+}
+
+// An unsigned option's check: digits only (CLI11 would wrap "-5" into 2^64 - 5).
+inline CLI::Validator whole_number() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        if (!text.empty() && text.find_first_not_of("0123456789") == std::string::npos) return {};
+        return "expected a whole number >= 0 (got \"" + text + "\")";
+      },
+      "N");
+}
 
 // Adds every registered command to `app` (in their --help order), parses the command line and
 // returns the exit status: the command's, or CLI11's for a parse error (never 0 on an error).

@@ -132,7 +132,7 @@ bool parse_threshold(const std::string& v, bool* on, float* value) {
   if (v == "off") { *on = false; return true; }
   char* end = nullptr;
   float f = std::strtof(v.c_str(), &end);
-  if (!end || *end || !(f >= 0)) return false;
+  if (!end || *end || !(f >= 0) || !std::isfinite(f)) return false;
   *on = true;
   *value = f;
   return true;
@@ -595,14 +595,16 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--screen-weighting", a->screen_weighting,
                   "Weight both thresholds by PX / height on screen for humans shorter than PX pixels, or off")
       ->capture_default_str();
-  cmd->add_option("--orbit", a->orbit, "Camera orbit speed, degrees per second")->capture_default_str();
+  cmd->add_option("--orbit", a->orbit, "Camera orbit speed, degrees per second (-3600 to 3600)")
+      ->capture_default_str()
+      ->check(finite_number(-3600.0, 3600.0));
   cmd->add_option("--msaa", a->msaa, "Samples per pixel of the scene window (1: none); the impostor path's too where its edges need them (see --impostor-target)")
       ->capture_default_str()->check(CLI::IsMember({1, 2, 4, 8}));
   cmd->add_option("--impostor-target", a->impostor_target,
                   "The impostor path's target: auto (single-sampled where the edges blend: the same frames, less to write) or scene (--msaa samples)")
       ->capture_default_str();
   cmd->add_option("--texels-per-pixel", a->texels_per_pixel, "Impostor window texels per screen pixel")
-      ->capture_default_str()->check(CLI::Range(0.25, 4.0));
+      ->capture_default_str()->check(finite_number(0.25, 4.0));
   cmd->add_option("--impostor-edges", a->impostor_edges,
                   "Impostor edges: blend (sorted, soft), samples (coverage per sample), coverage (alpha to coverage), test (alpha test), centre (one tap at the pixel centre, alpha test: with --snapshot-grid pixels a fresh impostor is the geometry's single-sampled pixels) or auto (blend)")
       ->capture_default_str();

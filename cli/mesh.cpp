@@ -220,7 +220,8 @@ void add_mesh_command(CLI::App& app, int* status) {
   cmd->add_option("body", *body, "Body JSON file, or 'default' for the built-in body")->capture_default_str();
   cmd->add_option("-o,--output", *dir, "Output folder")->capture_default_str();
   cmd->add_flag("--json", *json, "Print the report as one JSON object");
-  cmd->add_option("--seed", *seed, "Mesh a random variant of the body (make_variant with this seed)");
+  cmd->add_option("--seed", *seed, "Mesh a random variant of the body (make_variant with this seed; 0: the body itself)")
+      ->check(whole_number());
   cmd->add_option("--format", *format, "Mesh file format")->check(CLI::IsMember({"obj", "ply"}))->capture_default_str();
   cmd->add_flag("--no-errors", *no_errors, "Skip the distance measurements (faster)");
   cmd->callback([=] { *status = run_mesh(*body, *dir, *json, *seed, *format, !*no_errors); });

@@ -114,10 +114,16 @@ void add_render_command(CLI::App& app, int* status) {
   cmd->add_option("file", a->input, "Skinned .glb or .gltf")->required();
   cmd->add_option("-o,--output", a->output, "PNG to write")->required();
   cmd->add_option("--mode", a->mode, "geometry or impostor")->capture_default_str();
-  cmd->add_option("--time", a->time, "Seconds into the clip (looped)")->capture_default_str();
-  cmd->add_option("--azimuth", a->azimuth, "Degrees around the character; 0 = in front (+Z)")->capture_default_str();
-  cmd->add_option("--elevation", a->elevation, "Degrees above the horizon")->capture_default_str();
-  cmd->add_option("--distance", a->distance, "Metres from the character's centre Ta; 0 = fit")->capture_default_str();
+  cmd->add_option("--time", a->time, "Seconds into the clip (looped)")->capture_default_str()->check(finite_number());
+  cmd->add_option("--azimuth", a->azimuth, "Degrees around the character; 0 = in front (+Z)")
+      ->capture_default_str()
+      ->check(finite_number());
+  cmd->add_option("--elevation", a->elevation, "Degrees above the horizon")
+      ->capture_default_str()
+      ->check(finite_number());
+  cmd->add_option("--distance", a->distance, "Metres from the character's centre Ta; 0 = fit")
+      ->capture_default_str()
+      ->check(finite_number(0.0));
   cmd->add_option("--size", a->size, "Image size WxH in pixels")->capture_default_str();
   cmd->add_option("--clip", a->clip, "Clip name (default: the first)");
   cmd->add_option("--lod", a->lod, "Draw this level of detail (default: chosen by screen size)")->check(CLI::NonNegativeNumber);

@@ -18,7 +18,7 @@ glm::mat4 Transform::matrix() const {
 }
 
 float clip_time(float time, float duration, bool loop) {
-  if (!(duration > 0.0f)) return 0.0f;
+  if (!(duration > 0.0f) || !std::isfinite(time)) return 0.0f;
   if (!loop) return std::clamp(time, 0.0f, duration);
   float t = std::fmod(time, duration);
   if (t < 0.0f) t += duration;

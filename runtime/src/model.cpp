@@ -377,11 +377,11 @@ void Model::split_parts(std::span<const int> bones) {
               v = v * r;
             }
         }
-        std::array<int, 3> order{0, 1, 2};
-        std::sort(order.begin(), order.end(), [&](int x, int y) { return a[x][x] > a[y][y]; });
-        const double l1 = std::max(a[order[0]][order[0]], 0.0), l2 = std::max(a[order[1]][order[1]], 1e-12),
-                     l3 = std::max(a[order[2]][order[2]], 1e-12);
-        bp.axis = glm::vec3(glm::normalize(v[order[0]]));
+        std::array<int, 3> by_size{0, 1, 2};
+        std::sort(by_size.begin(), by_size.end(), [&](int x, int y) { return a[x][x] > a[y][y]; });
+        const double l1 = std::max(a[by_size[0]][by_size[0]], 0.0), l2 = std::max(a[by_size[1]][by_size[1]], 1e-12),
+                     l3 = std::max(a[by_size[2]][by_size[2]], 1e-12);
+        bp.axis = glm::vec3(glm::normalize(v[by_size[0]]));
         bp.elongation = static_cast<float>(std::sqrt(std::max(l1, l2) / l2));
         bp.flatness = static_cast<float>(std::sqrt(std::max(l2, l3) / l3));
       }

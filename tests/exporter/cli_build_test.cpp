@@ -68,6 +68,15 @@ TEST(CliBuild, BadBvhAndFlagsAreClearErrors) {
   Out missing = run("build -o " + (d / "out").string() + " --motion /nonexistent.bvh");
   EXPECT_NE(missing.status, 0);
   EXPECT_NE(missing.text.find("/nonexistent.bvh"), std::string::npos) << missing.text;
+  // A negative seed would wrap around (a file named default_v18446744073709551611.glb); a negative
+  // job count is no count.
+  Out seed = run("build --variants 1 --seed -5 --lods 2 --no-errors -o " + (d / "out").string());
+  EXPECT_NE(seed.status, 0);
+  EXPECT_NE(seed.text.find("--seed: expected a whole number >= 0 (got \"-5\")"), std::string::npos) << seed.text;
+  Out jobs = run("build --jobs -3 --lods 2 --no-errors -o " + (d / "out").string());
+  EXPECT_NE(jobs.status, 0);
+  EXPECT_NE(jobs.text.find("--jobs"), std::string::npos) << jobs.text;
+  EXPECT_FALSE(fs::exists(d / "out"));
 }
 
 TEST(CliBuild, MotionCaptureClipKeepsItsDuration) {

@@ -48,6 +48,10 @@ TEST(CliMesh, MissingBodyFileIsNamedInTheError) {
   std::string out = run("mesh /nonexistent/body.json -o /tmp/bb_never", &status);
   EXPECT_NE(status, 0);
   EXPECT_NE(out.find("/nonexistent/body.json"), std::string::npos) << out;
+  out = run("mesh --seed -1 -o /tmp/bb_never", &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(out.find("--seed: expected a whole number >= 0"), std::string::npos) << out;
+  EXPECT_FALSE(std::filesystem::exists("/tmp/bb_never"));
 }
 
 }  // namespace

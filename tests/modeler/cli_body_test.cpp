@@ -89,6 +89,10 @@ TEST(CliInspectBody, WrongFlagIsAnError) {
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.text.find("--no-such-flag"), std::string::npos) << r.text;
   EXPECT_NE(r.text.find("bodybuilder inspect:"), std::string::npos) << r.text;  // the command named
+  // An unknown posture is an error even without --preview, and the known ones are listed.
+  CmdResult p = run("inspect default --posture sitting");
+  EXPECT_NE(p.status, 0);
+  EXPECT_NE(p.text.find("unknown posture \"sitting\" (known: bind, max_extent, neutral)"), std::string::npos) << p.text;
   CmdResult c = run("no-such-command");
   EXPECT_NE(c.status, 0);
   EXPECT_NE(c.text.find("unknown command \"no-such-command\""), std::string::npos) << c.text;

@@ -64,6 +64,14 @@ TEST(RenderCommand, BadInputIsAnError) {
   EXPECT_NE(out.find("--mode"), std::string::npos) << out;
   out.clear();
   EXPECT_NE(run("render x.glb -o /tmp/bb_never.png --size 12", &out), 0);
+  // Numbers that are not finite, or out of range, are named before anything is read.
+  for (const char* bad : {"--time nan", "--azimuth inf", "--elevation -nan", "--distance -1", "--distance inf"}) {
+    out.clear();
+    EXPECT_NE(run(std::string("render x.glb -o /tmp/bb_never.png ") + bad, &out), 0) << bad;
+    const std::string flag(bad, std::string(bad).find(' '));
+    EXPECT_NE(out.find(flag + ": expected a finite number"), std::string::npos) << bad << ": " << out;
+  }
+  EXPECT_FALSE(fs::exists("/tmp/bb_never.png"));
 }
 
 }  // namespace

@@ -53,6 +53,10 @@ TEST(ClipTime, LoopsAndClamps) {
   EXPECT_FLOAT_EQ(clip_time(4.0f, 2.0f, true), 0.0f);
   EXPECT_FLOAT_EQ(clip_time(2.5f, 2.0f, false), 2.0f);
   EXPECT_FLOAT_EQ(clip_time(-1.0f, 2.0f, false), 0.0f);
+  // A time that is not finite stays inside the clip (the baked frames are indexed from it).
+  EXPECT_EQ(clip_time(std::nanf(""), 2.0f, true), 0.0f);
+  EXPECT_EQ(clip_time(INFINITY, 2.0f, true), 0.0f);
+  EXPECT_EQ(clip_time(-INFINITY, 2.0f, false), 0.0f);
   EXPECT_FLOAT_EQ(clip_time(3.0f, 0.0f, true), 0.0f);
 }
 

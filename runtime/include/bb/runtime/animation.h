@@ -11,7 +11,8 @@
 namespace bb::runtime {
 
 // Time inside a clip of `duration` seconds: looping wraps into [0, duration) (0 when duration
-// is 0); otherwise clamps to [0, duration].
+// is 0); otherwise clamps to [0, duration]. A time that is not finite (NaN, infinite) gives 0, so
+// that the frames sampled from it stay inside the clip.
 float clip_time(float time, float duration, bool loop);
 
 // Value of `channel` at `time` seconds (clamped to its first/last key). Step holds the previous
