@@ -134,7 +134,7 @@ struct ImpostorConfig {
   // on our crowd (Fox -0.17, RiggedSimple -0.14, CesiumMan +0.02), 8 and 17 degrees -0.07 to -0.15
   // dB, and the impostor frame 5-25 % shorter (the Fox at 17 degrees 4.8x -> 6.3x geometry's speed);
   // part cards at 8 degrees -0.2 to -0.33 dB; at 2 texels per pixel the taps skip texels (-0.4 dB).
-  // Other values count as 4.
+  // 0 and below count as 1, other values as 4.
   int impostor_taps = 4;
   // The snapshot's mesh LOD: the level the geometry path would draw for the character at its
   // size on screen now (true: the impostor shows the same silhouette as the geometry it
