@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <functional>
+#include <string>
 #include <iostream>
 #include <vector>
 
@@ -63,6 +65,13 @@ inline CLI::Validator whole_number() {
         return "expected a whole number >= 0 (got \"" + text + "\")";
       },
       "N");
+}
+
+// "WxH" with both in [lo, hi] and nothing after them, into *w and *h.
+inline bool parse_size(const std::string& text, int lo, int hi, int* w, int* h) {
+  int end = 0;
+  return std::sscanf(text.c_str(), "%dx%d%n", w, h, &end) == 2 && end == static_cast<int>(text.size()) && *w >= lo &&
+         *h >= lo && *w <= hi && *h <= hi;
 }
 
 // Adds every registered command to `app` (in their --help order), parses the command line and

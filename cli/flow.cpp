@@ -211,9 +211,8 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   FlowSettings s;
   s.humans = a.humans;
   s.frames = a.frames;
-  if (std::sscanf(a.size.c_str(), "%dx%d", &s.width, &s.height) != 2 || s.width < 16 || s.height < 16 ||
-      s.width > 8192 || s.height > 8192)
-    return fail("--size: expected WxH, e.g. 1280x1024 (got \"" + a.size + "\")");
+  if (!parse_size(a.size, 16, 8192, &s.width, &s.height))
+    return fail("--size: expected WxH, each from 16 to 8192, e.g. 1280x1024 (got \"" + a.size + "\")");
   if (a.mode == "geometry") s.impostor = false;
   else if (a.mode == "impostor") s.geometry = false;
   else if (a.mode != "both") return fail("--mode: expected geometry, impostor or both (got \"" + a.mode + "\")");

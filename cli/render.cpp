@@ -43,8 +43,7 @@ int run_render(const RenderArgs& a) {
     return 2;
   }
   o.orthographic = a.snapshot == "ortho";
-  if (std::sscanf(a.size.c_str(), "%dx%d", &o.width, &o.height) != 2 || o.width < 8 || o.height < 8 || o.width > 8192 ||
-      o.height > 8192) {
+  if (!parse_size(a.size, 8, 8192, &o.width, &o.height)) {
     std::cerr << "bodybuilder render: --size must be WxH between 8 and 8192, not \"" << a.size << "\"\n";
     return 2;
   }

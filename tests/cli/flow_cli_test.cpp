@@ -436,7 +436,7 @@ TEST(FlowCli, TargetsAreCheckedWithTheGivenSettings) {
 }
 
 TEST(FlowCli, BadFlagsAreErrors) {
-  for (const char* args : {"flow --size 12", "flow --mode fast", "flow --posture -1", "flow --view abc",
+  for (const char* args : {"flow --size 12", "flow --size 640x480px", "flow --size 99999x99999", "flow --mode fast", "flow --posture -1", "flow --view abc",
                            "flow --sweep size", "flow --model /nonexistent.glb --frames 1",
                            "flow --impostor-edges soft", "flow --snapshot-lod best", "flow --snapshot-camera fisheye",
                            "flow --refresh-budget -1", "flow --limb-cards round", "flow --snapshot-grid texels",

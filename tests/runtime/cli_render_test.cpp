@@ -64,6 +64,7 @@ TEST(RenderCommand, BadInputIsAnError) {
   EXPECT_NE(out.find("--mode"), std::string::npos) << out;
   out.clear();
   EXPECT_NE(run("render x.glb -o /tmp/bb_never.png --size 12", &out), 0);
+  EXPECT_NE(run("render x.glb -o /tmp/bb_never.png --size 64x64px", &out), 0);
   // Numbers that are not finite, or out of range, are named before anything is read.
   for (const char* bad : {"--time nan", "--azimuth inf", "--elevation -nan", "--distance -1", "--distance inf"}) {
     out.clear();
