@@ -23,8 +23,9 @@
 
 namespace bb::cli {
 
+// inspect.cpp; errors start "bodybuilder <command>: ".
 int run_inspect_body(const std::string& path, bool as_json, const std::string& preview_path,
-                     const std::string& posture_name);  // inspect.cpp
+                     const std::string& posture_name, const char* command);
 
 namespace {
 
@@ -116,10 +117,14 @@ constexpr int kDemoBudgetHumans = 200, kDemoRefreshBudget = 30;
 
 int run_demo(const std::string& dir, int frames, bool full) {
   auto t0 = std::chrono::steady_clock::now();
+  if (auto st = check_output_dir(dir); !st) {
+    std::cerr << "bodybuilder demo: " << st.error().message() << "\n";
+    return 1;
+  }
   std::printf("bodybuilder demo: writing into %s\n", dir.c_str());
   // 1. The body and its skin.
   std::string preview = (fs::path(dir) / "default_body.png").string();
-  if (int st = run_inspect_body("default", false, preview, "bind"); st) return st;
+  if (int st = run_inspect_body("default", false, preview, "bind", "demo"); st) return st;
   // 2. The LOD sets of the flow's default crowd: the body and its variants (the flow reuses them).
   auto glbs = default_flow_models(dir, kDefaultVariants);
   if (!glbs) {

@@ -321,6 +321,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   s.texels_per_pixel = a.texels_per_pixel;
   if (a.main_files) s.keep_frames = {0, s.frames / 2};
 
+  if (auto st = check_output_dir(a.out); !st) return fail(st.error().message());
   auto ctx = runtime::HeadlessContext::create();
   if (!ctx) return fail(ctx.error().message());
   std::string device = (*ctx)->description();

@@ -61,12 +61,12 @@ std::vector<unsigned char> preview(const modeler::Body& body, const modeler::Pos
 }  // namespace
 
 int run_inspect_body(const std::string& path, bool as_json, const std::string& preview_path,
-                     const std::string& posture_name) {
+                     const std::string& posture_name, const char* command) {
   auto t0 = std::chrono::steady_clock::now();
   Result<modeler::Body> loaded = path == "default" ? Result<modeler::Body>(modeler::default_body())
                                                    : modeler::load_body(path);
   if (!loaded) {
-    std::cerr << "bodybuilder inspect: " << loaded.error().message() << "\n";
+    std::cerr << "bodybuilder " << command << ": " << loaded.error().message() << "\n";
     return 1;
   }
   const modeler::Body& body = *loaded;
@@ -87,14 +87,14 @@ int run_inspect_body(const std::string& path, bool as_json, const std::string& p
     if (std::find(names.begin(), names.end(), "neutral") == names.end()) names.insert(names.begin(), "neutral");
     std::string known;
     for (const std::string& n : names) known += (known.empty() ? "" : ", ") + n;
-    std::cerr << "bodybuilder inspect: --posture: unknown posture \"" << posture_name << "\" (known: " << known << ")\n";
+    std::cerr << "bodybuilder " << command << ": --posture: unknown posture \"" << posture_name << "\" (known: " << known << ")\n";
     return 2;
   }
   if (!preview_path.empty()) {
     int w = 0, h = 512;
     auto img = preview(body, sk.posture(posture_name), h, &w);
     if (auto st = write_png(preview_path, w, h, img.data()); !st) {
-      std::cerr << "bodybuilder inspect: " << st.error().message() << "\n";
+      std::cerr << "bodybuilder " << command << ": " << st.error().message() << "\n";
       return 1;
     }
   }
@@ -145,7 +145,7 @@ void add_inspect_command(CLI::App& app, int* status) {
     if (has_suffix(*file, ".glb") || has_suffix(*file, ".gltf"))
       *status = inspect_gltf(*file, *as_json);
     else
-      *status = run_inspect_body(*file, *as_json, *preview_path, *posture);
+      *status = run_inspect_body(*file, *as_json, *preview_path, *posture, "inspect");
   });
 }
 

@@ -136,12 +136,16 @@ Status write_chain_png(const std::string& path, const std::vector<mesher::Lod>& 
 
 int run_mesh(const std::string& body_path, const std::string& dir, bool as_json, uint64_t seed,
              const std::string& format, bool errors) {
+  if (auto st = check_output_dir(dir); !st) {
+    std::cerr << "bodybuilder mesh: " << st.error().message() << '\n';
+    return 1;
+  }
   modeler::Body body;
   if (body_path == "default") {
     body = modeler::default_body();
   } else {
     auto b = modeler::load_body(body_path);
-    if (!b) { std::cerr << b.error().message() << '\n'; return 1; }
+    if (!b) { std::cerr << "bodybuilder mesh: " << b.error().message() << '\n'; return 1; }
     body = std::move(*b);
   }
   if (seed != 0) {
@@ -153,7 +157,7 @@ int run_mesh(const std::string& body_path, const std::string& dir, bool as_json,
   if (!errors) opt.error_samples = 0;
   auto lods = mesher::build_lods(body, opt);
   if (!lods) {
-    std::cerr << (body_path == "default" ? std::string("default") : body_path) << ": "
+    std::cerr << "bodybuilder mesh: " << (body_path == "default" ? std::string("default") : body_path) << ": "
               << lods.error().message() << '\n';
     return 1;
   }
@@ -172,7 +176,7 @@ int run_mesh(const std::string& body_path, const std::string& dir, bool as_json,
     const auto& r = l.report;
     std::string file = (fs::path(dir) / ("lod" + std::to_string(r.level) + "." + format)).string();
     Status w = write_atomic(file, format == "ply" ? to_ply(l.mesh) : to_obj(l.mesh));
-    if (!w) { std::cerr << w.error().message() << '\n'; return 1; }
+    if (!w) { std::cerr << "bodybuilder mesh: " << w.error().message() << '\n'; return 1; }
     report["lods"].push_back({{"level", r.level}, {"file", file}, {"triangles", r.triangles},
                               {"vertices", r.vertices}, {"extremity_triangles", r.extremity_triangles},
                               {"vdb_extremities", r.vdb_extremities}, {"hausdorff_m", r.hausdorff_m},
@@ -184,10 +188,10 @@ int run_mesh(const std::string& body_path, const std::string& dir, bool as_json,
   }
   std::string png = (fs::path(dir) / "lods.png").string();
   Status p = write_chain_png(png, *lods);
-  if (!p) { std::cerr << p.error().message() << '\n'; return 1; }
+  if (!p) { std::cerr << "bodybuilder mesh: " << p.error().message() << '\n'; return 1; }
   report["picture"] = png;
   Status j = write_atomic((fs::path(dir) / "report.json").string(), report.dump(1) + "\n");
-  if (!j) { std::cerr << j.error().message() << '\n'; return 1; }
+  if (!j) { std::cerr << "bodybuilder mesh: " << j.error().message() << '\n'; return 1; }
   if (as_json) {
     std::cout << report.dump() << '\n';
   } else {

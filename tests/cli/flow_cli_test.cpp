@@ -452,6 +452,22 @@ TEST(FlowCli, BadFlagsAreErrors) {
     EXPECT_NE(o.status, 0) << args;
     EXPECT_NE(o.text.find("flow"), std::string::npos) << args << ": " << o.text;
   }
+  // An output folder that cannot be written is named before anything runs: flow, demo and mesh.
+  const fs::path file = fs::temp_directory_path() / "bb_flow_not_a_folder";
+  std::ofstream(file) << "x";
+  const std::pair<std::string, std::string> cases[] = {{"flow --frames 1 -o ", file.string()},
+                                                       {"flow --frames 1 -o ", (file / "sub").string()},
+                                                       {"demo -o ", file.string()},
+                                                       {"mesh --no-errors -o ", file.string()}};
+  for (const auto& [cmd, target] : cases) {
+    Out bad = run(cmd + target);
+    EXPECT_NE(bad.status, 0) << cmd;
+    EXPECT_NE(bad.text.find(target + ": cannot be the output folder: " + file.string() + " is a file, not a folder"),
+              std::string::npos)
+        << cmd << ": " << bad.text;
+    EXPECT_NE(bad.text.find("bodybuilder " + cmd.substr(0, cmd.find(' ')) + ":"), std::string::npos) << bad.text;
+  }
+  fs::remove(file);
   // A bad crowd size is named before anything runs (no main run, no output folder).
   const fs::path d = fs::temp_directory_path() / "bb_flow_bad_scaling";
   fs::remove_all(d);
