@@ -122,6 +122,10 @@ int run(BuildArgs a) {
     std::cerr << "bodybuilder build: --variants: expected >= 0\n";
     return 2;
   }
+  if (auto st = check_output_dir(a.out); !st) {
+    std::cerr << "bodybuilder build: " << st.error().message() << "\n";
+    return 1;
+  }
   for (const auto& m : a.motions)
     if (!fs::exists(m)) {
       std::cerr << "bodybuilder build: --motion: " << m << ": no such file\n";

@@ -452,13 +452,14 @@ TEST(FlowCli, BadFlagsAreErrors) {
     EXPECT_NE(o.status, 0) << args;
     EXPECT_NE(o.text.find("flow"), std::string::npos) << args << ": " << o.text;
   }
-  // An output folder that cannot be written is named before anything runs: flow, demo and mesh.
+  // An output folder that cannot be written is named before anything runs: flow, demo, mesh, build.
   const fs::path file = fs::temp_directory_path() / "bb_flow_not_a_folder";
   std::ofstream(file) << "x";
   const std::pair<std::string, std::string> cases[] = {{"flow --frames 1 -o ", file.string()},
                                                        {"flow --frames 1 -o ", (file / "sub").string()},
                                                        {"demo -o ", file.string()},
-                                                       {"mesh --no-errors -o ", file.string()}};
+                                                       {"mesh --no-errors -o ", file.string()},
+                                                       {"build --no-errors -o ", file.string()}};
   for (const auto& [cmd, target] : cases) {
     Out bad = run(cmd + target);
     EXPECT_NE(bad.status, 0) << cmd;
