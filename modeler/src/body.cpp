@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 
 #include "bb/modeler/implicit_surface.h"
@@ -93,14 +94,31 @@ Result<Body> parse_body(std::string_view text, std::string_view file, const std:
       if (pr.joint < 0) fail(at(p, "joint"), "unknown joint \"" + joint + "\"");
       pr.center = vec3(member(o, p, "center"), at(p, "center"));
       pr.radii = vec3(member(o, p, "radii"), at(p, "radii"));
-      for (int k = 0; k < 3; ++k)
+      const std::string max_m = std::to_string(static_cast<int>(kMaxPrimitiveExtent));
+      auto num = [](float v) {
+        char b[32];
+        std::snprintf(b, sizeof b, "%g", static_cast<double>(v));
+        return std::string(b);
+      };
+      for (int k = 0; k < 3; ++k) {
         if (!(pr.radii[k] > 0.0f))
-          fail(at(at(p, "radii"), k), "radius must be positive (got " + std::to_string(pr.radii[k]) + ")");
-      if (auto it = o.find("rotation_deg"); it != o.end())
-        pr.orientation = glm::quat(glm::radians(vec3(*it, at(p, "rotation_deg"))));
+          fail(at(at(p, "radii"), k), "radius must be positive (got " + num(pr.radii[k]) + ")");
+        if (!(pr.radii[k] <= kMaxPrimitiveExtent))
+          fail(at(at(p, "radii"), k), "radius must be at most " + max_m + " m (got " + num(pr.radii[k]) + ")");
+        if (!(std::abs(pr.center[k]) <= kMaxPrimitiveExtent))
+          fail(at(at(p, "center"), k),
+               "the centre must lie within " + max_m + " m of its joint (got " + num(pr.center[k]) + ")");
+      }
+      if (auto it = o.find("rotation_deg"); it != o.end()) {
+        const glm::vec3 deg = vec3(*it, at(p, "rotation_deg"));
+        for (int k = 0; k < 3; ++k)
+          if (!(std::abs(deg[k]) <= 360.0f))
+            fail(at(at(p, "rotation_deg"), k), "an angle must lie in [-360, 360] degrees (got " + num(deg[k]) + ")");
+        pr.orientation = glm::quat(glm::radians(deg));
+      }
       if (auto it = o.find("strength"); it != o.end()) {
         pr.strength = static_cast<float>(number(*it, at(p, "strength")));
-        if (!(pr.strength > 0.0f)) fail(at(p, "strength"), "strength must be positive");
+        if (!(pr.strength > 0.0f) || !std::isfinite(pr.strength)) fail(at(p, "strength"), "strength must be positive and finite");
       }
       body.primitives.push_back(std::move(pr));
     }

@@ -24,12 +24,16 @@ enum class PrimitiveType {
   kMetaball,   // muscle and fat layer: a soft field that blends with its neighbours
 };
 
+// A human's primitive lies near its joint: body files with a semi-axis or a centre offset beyond
+// this (metres) are rejected (a 50 m "pelvis" would mesh without complaint into nonsense).
+inline constexpr float kMaxPrimitiveExtent = 2.0f;
+
 struct Primitive {
   std::string name;               // optional label, e.g. "l_thigh_front"
   PrimitiveType type = PrimitiveType::kMetaball;
   int joint = 0;                  // index into the skeleton's joints
-  glm::vec3 center{0};            // joint frame, metres
-  glm::vec3 radii{0.05f};         // semi-axes, metres, all > 0
+  glm::vec3 center{0};            // joint frame, metres, |each| <= kMaxPrimitiveExtent
+  glm::vec3 radii{0.05f};         // semi-axes, metres, in (0, kMaxPrimitiveExtent]
   glm::quat orientation{1, 0, 0, 0};  // joint frame
   float strength = 1.0f;          // field multiplier, > 0 (1: the lone primitive's skin is its ellipsoid)
 };
