@@ -270,8 +270,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     return fail("--impostor-taps: expected auto, 1, 2 or 4 (got \"" + a.impostor_taps + "\")");
   // auto (ImpostorConfig::impostor_taps): one where --msaa 1 (no coverage to match); two for whole
   // impostors at up to one texel per pixel (twenty-third session, 4x MSAA, 30 frames: the impostor
-  // frame 5-25 % shorter at 8 and 17 degrees, 0.03-0.17 dB lower); four for part cards (two lose 0.2-0.3 dB there and
-  // gain little time) and for finer windows (two taps 0.2 pixels out skip texels: -0.4 dB at 2).
+  // frame 5-25 % shorter at 8 and 17 degrees, 0.03-0.17 dB lower); four for part cards (two lose
+  // 0.2-0.3 dB there and gain little time) and for finer windows (two taps 0.2 pixels out skip
+  // texels: -0.4 dB at 2).
   if (a.impostor_taps != "auto") s.impostor_taps = std::stoi(a.impostor_taps);
   else s.impostor_taps = a.msaa == 1 ? 1 : !a.impostor_parts && a.texels_per_pixel <= 1.0f ? 2 : 4;
   if (a.quad_fit != "boxes" && a.quad_fit != "coverage")

@@ -81,10 +81,9 @@ int run_inspect_body(const std::string& path, bool as_json, const std::string& p
   int ne = body.count(modeler::PrimitiveType::kEllipsoid), nm = body.count(modeler::PrimitiveType::kMetaball);
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   // An unknown posture is an error with or without --preview (which is what it is for).
-  if (posture_name != "neutral" &&
-      std::find(sk.posture_names().begin(), sk.posture_names().end(), posture_name) == sk.posture_names().end()) {
-    std::vector<std::string> names = sk.posture_names();
-    if (std::find(names.begin(), names.end(), "neutral") == names.end()) names.insert(names.begin(), "neutral");
+  std::vector<std::string> names = sk.posture_names();
+  if (std::find(names.begin(), names.end(), "neutral") == names.end()) names.insert(names.begin(), "neutral");
+  if (std::find(names.begin(), names.end(), posture_name) == names.end()) {
     std::string known;
     for (const std::string& n : names) known += (known.empty() ? "" : ", ") + n;
     std::cerr << "bodybuilder " << command << ": --posture: unknown posture \"" << posture_name << "\" (known: " << known << ")\n";

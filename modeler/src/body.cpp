@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <filesystem>
 
 #include "bb/modeler/implicit_surface.h"
@@ -94,26 +93,20 @@ Result<Body> parse_body(std::string_view text, std::string_view file, const std:
       if (pr.joint < 0) fail(at(p, "joint"), "unknown joint \"" + joint + "\"");
       pr.center = vec3(member(o, p, "center"), at(p, "center"));
       pr.radii = vec3(member(o, p, "radii"), at(p, "radii"));
-      const std::string max_m = std::to_string(static_cast<int>(kMaxPrimitiveExtent));
-      auto num = [](float v) {
-        char b[32];
-        std::snprintf(b, sizeof b, "%g", static_cast<double>(v));
-        return std::string(b);
-      };
       for (int k = 0; k < 3; ++k) {
         if (!(pr.radii[k] > 0.0f))
-          fail(at(at(p, "radii"), k), "radius must be positive (got " + num(pr.radii[k]) + ")");
+          fail(at(at(p, "radii"), k), "radius must be positive (got " + number_text(pr.radii[k]) + ")");
         if (!(pr.radii[k] <= kMaxPrimitiveExtent))
-          fail(at(at(p, "radii"), k), "radius must be at most " + max_m + " m (got " + num(pr.radii[k]) + ")");
+          fail(at(at(p, "radii"), k), "radius must be at most " + number_text(kMaxPrimitiveExtent) + " m (got " + number_text(pr.radii[k]) + ")");
         if (!(std::abs(pr.center[k]) <= kMaxPrimitiveExtent))
           fail(at(at(p, "center"), k),
-               "the centre must lie within " + max_m + " m of its joint (got " + num(pr.center[k]) + ")");
+               "the centre must lie within " + number_text(kMaxPrimitiveExtent) + " m of its joint (got " + number_text(pr.center[k]) + ")");
       }
       if (auto it = o.find("rotation_deg"); it != o.end()) {
         const glm::vec3 deg = vec3(*it, at(p, "rotation_deg"));
         for (int k = 0; k < 3; ++k)
           if (!(std::abs(deg[k]) <= 360.0f))
-            fail(at(at(p, "rotation_deg"), k), "an angle must lie in [-360, 360] degrees (got " + num(deg[k]) + ")");
+            fail(at(at(p, "rotation_deg"), k), "an angle must lie in [-360, 360] degrees (got " + number_text(deg[k]) + ")");
         pr.orientation = glm::quat(glm::radians(deg));
       }
       if (auto it = o.find("strength"); it != o.end()) {

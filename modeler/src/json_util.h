@@ -2,6 +2,7 @@
 // JsonError inside the modeler; the public entry points catch it and return bb::Error.
 #pragma once
 
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -23,6 +24,13 @@ struct JsonError {
 
 [[noreturn]] inline void fail(const std::string& where, const std::string& reason) {
   throw JsonError{where, reason};
+}
+
+// `v` as an error message shows it: shortest form, "1e+30" rather than thirty digits.
+inline std::string number_text(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
 }
 
 inline std::string at(const std::string& path, const std::string& key) { return path + "." + key; }
