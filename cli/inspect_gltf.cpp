@@ -2,7 +2,7 @@
 // Levels come from the runtime's loader (MSFT_lod or one level); each level is checked with
 // CGAL (closed, manifold, self-intersections; vertices welded by position first, since uv seams
 // split vertices) and compared with level 0 (symmetric Hausdorff over the model's height). The
-// skin's influences are read raw with tinygltf (the runtime normalizes them on load).
+// skin's influences as stored come from the loader's SkinReport (the runtime normalizes them on load).
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -13,9 +13,9 @@
 #include <tuple>
 
 #include <nlohmann/json.hpp>
-#include <tiny_gltf.h>
 
 #include "bb/mesher/mesh_check.h"
+#include "bb/runtime/animation.h"
 #include "bb/runtime/model.h"
 
 namespace bb::cli {
@@ -42,50 +42,23 @@ Welded weld(const runtime::MeshLod& lod) {
   return w;
 }
 
-struct SkinStats {
-  int max_influences = 0;
-  bool normalized = true;
-  size_t vertices = 0;
-  double worst_sum_error = 0;
-};
-
-// Reads WEIGHTS_0 of every skinned primitive as stored.
-SkinStats skin_stats(const tinygltf::Model& m) {
-  SkinStats s;
-  for (const auto& node : m.nodes) {
-    if (node.skin < 0 || node.mesh < 0 || node.mesh >= static_cast<int>(m.meshes.size())) continue;
-    for (const auto& prim : m.meshes[node.mesh].primitives) {
-      auto it = prim.attributes.find("WEIGHTS_0");
-      if (it == prim.attributes.end() || it->second < 0 || it->second >= static_cast<int>(m.accessors.size())) continue;
-      const auto& a = m.accessors[it->second];
-      if (a.bufferView < 0 || a.type != TINYGLTF_TYPE_VEC4) continue;
-      const auto& v = m.bufferViews[a.bufferView];
-      const auto& buf = m.buffers[v.buffer].data;
-      int comp = tinygltf::GetComponentSizeInBytes(a.componentType);
-      size_t stride = v.byteStride ? v.byteStride : 4 * comp;
-      for (size_t i = 0; i < a.count; ++i) {
-        size_t off = v.byteOffset + a.byteOffset + i * stride;
-        if (off + 4 * comp > buf.size()) break;
-        double sum = 0;
-        int n = 0;
-        for (int k = 0; k < 4; ++k) {
-          const unsigned char* p = &buf[off + k * comp];
-          double w = 0;
-          if (a.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT) { float f; std::memcpy(&f, p, 4); w = f; }
-          else if (a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE) w = *p / 255.0;
-          else if (a.componentType == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT) { uint16_t u; std::memcpy(&u, p, 2); w = u / 65535.0; }
-          sum += w;
-          n += w > 0;
-        }
-        s.max_influences = std::max(s.max_influences, n);
-        double tol = a.componentType == TINYGLTF_COMPONENT_TYPE_FLOAT ? 1e-5 : 2.0 / 255;
-        s.worst_sum_error = std::max(s.worst_sum_error, std::abs(sum - 1));
-        if (std::abs(sum - 1) > tol) s.normalized = false;
-        ++s.vertices;
-      }
-    }
+// Level 0 skinned in the rest pose (model space: the file's units and axes, whatever its bind space
+// is, e.g. the integer grid of a quantized mesh whose inverse bind matrices scale it back).
+std::vector<glm::vec3> rest_positions(const runtime::Model& m) {
+  std::vector<runtime::Transform> locals(m.nodes.size());
+  runtime::sample_clip(m, -1, 0.0f, locals);
+  std::vector<glm::mat4> world(m.nodes.size()), pal(m.palette.size());
+  runtime::world_matrices(m, locals, world);
+  runtime::palette_matrices(m, world, pal);
+  std::vector<glm::vec3> out;
+  out.reserve(m.lods[0].vertices.size());
+  for (const auto& v : m.lods[0].vertices) {
+    glm::vec3 p(0.0f);
+    for (int k = 0; k < 4; ++k)
+      if (v.weights[k] > 0.0f) p += v.weights[k] * glm::vec3(pal[v.joints[k]] * glm::vec4(v.position, 1.0f));
+    out.push_back(p);
   }
-  return s;
+  return out;
 }
 
 }  // namespace
@@ -96,24 +69,22 @@ int inspect_gltf(const std::string& path, bool as_json) {
     std::cerr << "bodybuilder inspect: " << model.error().message() << "\n";
     return 1;
   }
-  tinygltf::Model raw;
-  tinygltf::TinyGLTF loader;
-  std::string err, warn;
-  bool binary = path.size() >= 4 && path.compare(path.size() - 4, 4, ".glb") == 0;
-  bool ok = binary ? loader.LoadBinaryFromFile(&raw, &err, &warn, path) : loader.LoadASCIIFromFile(&raw, &err, &warn, path);
-  SkinStats skin = ok ? skin_stats(raw) : SkinStats{};
   const runtime::Model& m = *model;
-  // Model height: bind-space extent of level 0 along Y.
-  float lo = 1e30f, hi = -1e30f;
-  for (const auto& v : m.lods[0].vertices) { lo = std::min(lo, v.position.y); hi = std::max(hi, v.position.y); }
-  double height = hi > lo ? hi - lo : 1.0;
+  const runtime::SkinReport& skin = m.skin_report;
+  // Model height: the rest pose's extent along Y. The Hausdorff distances are measured between the
+  // levels' bind-space vertices and scaled by the ratio of the two extents (a similarity, such as a
+  // quantized mesh's, keeps that ratio).
+  float lo = 1e30f, hi = -1e30f, blo = 1e30f, bhi = -1e30f;
+  for (const glm::vec3& p : rest_positions(m)) lo = std::min(lo, p.y), hi = std::max(hi, p.y);
+  for (const auto& v : m.lods[0].vertices) blo = std::min(blo, v.position.y), bhi = std::max(bhi, v.position.y);
+  const double height = hi > lo ? hi - lo : 1.0, bind_height = bhi > blo ? bhi - blo : 1.0;
   Welded w0 = weld(m.lods[0]);
   nlohmann::ordered_json lods = nlohmann::ordered_json::array();
   for (size_t l = 0; l < m.lods.size(); ++l) {
     const auto& lod = m.lods[l];
     Welded w = l == 0 ? w0 : weld(lod);
     auto check = mesher::check_mesh(w.positions, w.indices, true);
-    double h = l == 0 ? 0.0 : mesher::hausdorff_distance(w.positions, w.indices, w0.positions, w0.indices);
+    double h = l == 0 ? 0.0 : mesher::hausdorff_distance(w.positions, w.indices, w0.positions, w0.indices) / bind_height;
     nlohmann::ordered_json j;
     j["level"] = l;
     j["triangles"] = lod.triangle_count();
@@ -124,16 +95,15 @@ int inspect_gltf(const std::string& path, bool as_json) {
     j["oriented"] = check.oriented;
     j["self_intersections"] = check.self_intersections;
     j["components"] = check.connected_components;
-    j["hausdorff_m"] = h;
-    j["hausdorff_rel"] = h / height;
+    j["hausdorff_m"] = h * height;
+    j["hausdorff_rel"] = h;
     j["textured"] = std::any_of(lod.primitives.begin(), lod.primitives.end(),
                                 [&](const runtime::Primitive& p) { return m.materials[p.material].texture >= 0; });
     lods.push_back(j);
   }
   nlohmann::ordered_json anims = nlohmann::ordered_json::array();
   for (const auto& c : m.clips) anims.push_back({{"name", c.name}, {"duration_s", c.duration}});
-  int joints = 0;
-  for (const auto& s : raw.skins) joints = std::max(joints, static_cast<int>(s.joints.size()));
+  const int joints = skin.skin_joints;
   nlohmann::ordered_json j;
   j["kind"] = "gltf";
   j["file"] = path;
@@ -142,8 +112,9 @@ int inspect_gltf(const std::string& path, bool as_json) {
   j["height"] = height;
   j["lods"] = lods;
   j["animations"] = anims;
-  j["skin"] = {{"max_influences", skin.max_influences}, {"weights_normalized", skin.normalized},
-               {"worst_weight_sum_error", skin.worst_sum_error}, {"skinned_vertices", skin.vertices}};
+  j["skin"] = {{"max_influences", skin.max_influences}, {"weights_normalized", skin.weights_normalized},
+               {"worst_weight_sum_error", skin.worst_weight_sum_error}, {"skinned_vertices", skin.skinned_vertices},
+               {"vertices_over_four", skin.vertices_over_four}, {"worst_dropped_weight", skin.worst_dropped_weight}};
   j["materials"] = m.materials.size();
   j["textures"] = m.textures.size();
   if (as_json) {
@@ -160,7 +131,10 @@ int inspect_gltf(const std::string& path, bool as_json) {
                 l["hausdorff_rel"].get<double>(), l["textured"].get<bool>() ? "yes" : "no");
   for (const auto& c : m.clips) std::printf("animation %s: %.3f s\n", c.name.c_str(), c.duration);
   std::printf("skin: at most %d influences per vertex, weights %s\n", skin.max_influences,
-              skin.normalized ? "normalized" : "NOT normalized");
+              skin.weights_normalized ? "normalized" : "NOT normalized");
+  if (skin.vertices_over_four > 0)
+    std::printf("skin: %zu vertices have more than 4 influences; the runtime keeps the 4 heaviest (at most %.1f %% of a "
+                "vertex's weight dropped)\n", skin.vertices_over_four, 100.0 * skin.worst_dropped_weight);
   return 0;
 }
 

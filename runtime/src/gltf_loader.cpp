@@ -5,13 +5,17 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <glm/gtc/type_ptr.hpp>
 #define GLM_ENABLE_EXPERIMENTAL
 #include <glm/gtx/matrix_decompose.hpp>
+#include <meshoptimizer.h>
+#include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
 
 #include "bb/runtime/model.h"
@@ -56,9 +60,38 @@ int type_components(int type) {
   }
 }
 
+// The bytes of buffer view `vi`, checked against its buffer.
+Result<std::pair<const unsigned char*, std::size_t>> view_bytes(const Ctx& c, int vi, const std::string& user) {
+  const auto& m = c.m;
+  if (vi < 0 || vi >= static_cast<int>(m.bufferViews.size()))
+    return c.err(user, "buffer view " + std::to_string(vi) + " does not exist");
+  const tg::BufferView& bv = m.bufferViews[vi];
+  std::string bvw = idx("bufferViews", vi);
+  if (bv.buffer < 0 || bv.buffer >= static_cast<int>(m.buffers.size()))
+    return c.err(bvw + ".buffer", "buffer " + std::to_string(bv.buffer) + " does not exist");
+  const auto& data = m.buffers[bv.buffer].data;
+  if (bv.byteOffset > data.size() || bv.byteLength > data.size() - bv.byteOffset)
+    return c.err(bvw, "byte range [" + std::to_string(bv.byteOffset) + ", " + std::to_string(bv.byteOffset + bv.byteLength) +
+                          ") lies outside its buffer of " + std::to_string(data.size()) + " bytes");
+  return std::make_pair(data.data() + bv.byteOffset, bv.byteLength);
+}
+
+// One component of type `ct` at `p` as a double (normalized integers mapped to [0,1] or [-1,1]).
+double component(int ct, const unsigned char* p, bool norm) {
+  switch (ct) {
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: { float f; std::memcpy(&f, p, 4); return f; }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return norm ? *p / 255.0 : *p;
+    case TINYGLTF_COMPONENT_TYPE_BYTE: { double v = static_cast<signed char>(*p); return norm ? std::max(v / 127.0, -1.0) : v; }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: { std::uint16_t s; std::memcpy(&s, p, 2); return norm ? s / 65535.0 : s; }
+    case TINYGLTF_COMPONENT_TYPE_SHORT: { std::int16_t s; std::memcpy(&s, p, 2); return norm ? std::max(s / 32767.0, -1.0) : s; }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: { std::uint32_t s; std::memcpy(&s, p, 4); return s; }
+    default: return 0.0;
+  }
+}
+
 // Reads accessor `ai` as `want_components` values per element, converting every component to
 // double (normalized integers mapped to [0,1] or [-1,1] when the accessor says so or `normalize`).
-// `allowed` lists the accepted component types. Checks every byte range.
+// `allowed` lists the accepted component types. Applies a sparse substitution. Checks every byte range.
 Result<std::vector<double>> read_accessor(const Ctx& c, int ai, int want_type, std::initializer_list<int> allowed,
                                           bool force_normalize, const std::string& user) {
   const auto& m = c.m;
@@ -71,49 +104,70 @@ Result<std::vector<double>> read_accessor(const Ctx& c, int ai, int want_type, s
                                       " needs " + std::to_string(type_components(want_type)));
   if (std::find(allowed.begin(), allowed.end(), a.componentType) == allowed.end())
     return c.err(where + ".componentType", "component type " + std::to_string(a.componentType) + " is not allowed for " + user);
-  if (a.sparse.isSparse) return c.err(where + ".sparse", "sparse accessors are not supported");
   const int nc = type_components(a.type);
   const int cs = component_size(a.componentType);
   if (a.count == 0) return c.err(where + ".count", "accessor is empty");
   if (a.count > (1u << 26)) return c.err(where + ".count", "accessor is implausibly large");
   std::vector<double> out(a.count * nc, 0.0);
-  if (a.bufferView < 0) return out;  // all zeros, as glTF says
-  if (a.bufferView >= static_cast<int>(m.bufferViews.size()))
-    return c.err(where + ".bufferView", "buffer view " + std::to_string(a.bufferView) + " does not exist");
-  const tg::BufferView& bv = m.bufferViews[a.bufferView];
-  std::string bvw = idx("bufferViews", a.bufferView);
-  if (bv.buffer < 0 || bv.buffer >= static_cast<int>(m.buffers.size()))
-    return c.err(bvw + ".buffer", "buffer " + std::to_string(bv.buffer) + " does not exist");
-  const auto& data = m.buffers[bv.buffer].data;
-  if (bv.byteOffset > data.size() || bv.byteLength > data.size() - bv.byteOffset)
-    return c.err(bvw, "byte range [" + std::to_string(bv.byteOffset) + ", " + std::to_string(bv.byteOffset + bv.byteLength) +
-                          ") lies outside its buffer of " + std::to_string(data.size()) + " bytes");
+  const bool norm = a.normalized || force_normalize;
   // Matrices of 1- and 2-byte components have column padding; we only read float matrices.
   const std::size_t elem = static_cast<std::size_t>(nc) * cs;
-  const std::size_t stride = bv.byteStride ? bv.byteStride : elem;
-  if (stride < elem) return c.err(bvw + ".byteStride", "stride " + std::to_string(stride) + " is smaller than an element");
-  const std::size_t need = a.byteOffset + stride * (a.count - 1) + elem;
-  if (a.byteOffset > bv.byteLength || need > bv.byteLength)
-    return c.err(where, "accessor needs " + std::to_string(need) + " bytes, its buffer view has " +
-                            std::to_string(bv.byteLength));
-  const unsigned char* base = data.data() + bv.byteOffset + a.byteOffset;
-  const bool norm = a.normalized || force_normalize;
-  for (std::size_t i = 0; i < a.count; ++i) {
-    const unsigned char* e = base + i * stride;
+  auto convert = [&](const unsigned char* e, std::size_t i, std::size_t slot) -> Status {
     for (int k = 0; k < nc; ++k) {
-      const unsigned char* p = e + k * cs;
-      double v = 0;
-      switch (a.componentType) {
-        case TINYGLTF_COMPONENT_TYPE_FLOAT: { float f; std::memcpy(&f, p, 4); v = f; break; }
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: v = *p; if (norm) v /= 255.0; break;
-        case TINYGLTF_COMPONENT_TYPE_BYTE: v = static_cast<signed char>(*p); if (norm) v = std::max(v / 127.0, -1.0); break;
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: { std::uint16_t s; std::memcpy(&s, p, 2); v = s; if (norm) v /= 65535.0; break; }
-        case TINYGLTF_COMPONENT_TYPE_SHORT: { std::int16_t s; std::memcpy(&s, p, 2); v = s; if (norm) v = std::max(v / 32767.0, -1.0); break; }
-        case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: { std::uint32_t s; std::memcpy(&s, p, 4); v = s; break; }
-        default: break;
-      }
+      double v = component(a.componentType, e + k * cs, norm);
       if (!std::isfinite(v)) return c.err(where, "element " + std::to_string(i) + " is not a finite number");
-      out[i * nc + k] = v;
+      out[slot * nc + k] = v;
+    }
+    return Ok{};
+  };
+  if (a.bufferView >= 0) {  // without one the elements are zeros (before a sparse substitution), as glTF says
+    auto bytes = view_bytes(c, a.bufferView, where + ".bufferView");
+    if (!bytes) return bytes.error();
+    const tg::BufferView& bv = m.bufferViews[a.bufferView];
+    const std::size_t stride = bv.byteStride ? bv.byteStride : elem;
+    if (stride < elem)
+      return c.err(idx("bufferViews", a.bufferView) + ".byteStride", "stride " + std::to_string(stride) + " is smaller than an element");
+    const std::size_t need = a.byteOffset + stride * (a.count - 1) + elem;
+    if (a.byteOffset > bytes->second || need > bytes->second)
+      return c.err(where, "accessor needs " + std::to_string(need) + " bytes, its buffer view has " + std::to_string(bytes->second));
+    for (std::size_t i = 0; i < a.count; ++i)
+      if (auto s = convert(bytes->first + a.byteOffset + i * stride, i, i); !s) return s.error();
+  }
+  if (a.sparse.isSparse) {
+    const auto& sp = a.sparse;
+    const std::string sw = where + ".sparse";
+    if (sp.count <= 0 || static_cast<std::size_t>(sp.count) > a.count)
+      return c.err(sw + ".count", "must be from 1 to the accessor's count " + std::to_string(a.count) + " (got " +
+                                      std::to_string(sp.count) + ")");
+    const std::size_t n = static_cast<std::size_t>(sp.count);
+    const int ict = sp.indices.componentType;
+    if (ict != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && ict != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+        ict != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
+      return c.err(sw + ".indices.componentType", "component type " + std::to_string(ict) + " is not an unsigned integer type");
+    auto ib = view_bytes(c, sp.indices.bufferView, sw + ".indices.bufferView");
+    if (!ib) return ib.error();
+    auto vb = view_bytes(c, sp.values.bufferView, sw + ".values.bufferView");
+    if (!vb) return vb.error();
+    const std::size_t ics = component_size(ict);
+    const std::size_t ioff = static_cast<std::size_t>(std::max(sp.indices.byteOffset, 0));
+    const std::size_t voff = static_cast<std::size_t>(std::max(sp.values.byteOffset, 0));
+    if (ioff > ib->second || n * ics > ib->second - ioff)
+      return c.err(sw + ".indices", std::to_string(n) + " indices need " + std::to_string(ioff + n * ics) +
+                                        " bytes, the buffer view has " + std::to_string(ib->second));
+    if (voff > vb->second || n * elem > vb->second - voff)
+      return c.err(sw + ".values", std::to_string(n) + " values need " + std::to_string(voff + n * elem) +
+                                       " bytes, the buffer view has " + std::to_string(vb->second));
+    double previous = -1.0;
+    for (std::size_t s = 0; s < n; ++s) {
+      const double target = component(ict, ib->first + ioff + s * ics, false);
+      if (!(target > previous))
+        return c.err(sw + ".indices", "index " + std::to_string(s) + " does not increase strictly");
+      if (target >= static_cast<double>(a.count))
+        return c.err(sw + ".indices", "index " + std::to_string(static_cast<long long>(target)) + " is past the " +
+                                          std::to_string(a.count) + " elements");
+      previous = target;
+      if (auto st = convert(vb->first + voff + s * elem, static_cast<std::size_t>(target), static_cast<std::size_t>(target)); !st)
+        return st.error();
     }
   }
   return out;
@@ -172,12 +226,44 @@ std::vector<double> number_array(const tg::Value& v) {
   return r;
 }
 
+// The texture coordinate set a material's base colour texture reads, and its KHR_texture_transform.
+struct UvSet {
+  int set = 0;
+  glm::mat3 transform{1.0f};
+};
+
 struct Builder {
   const Ctx& c;
   Model& out;
+  bool quantized = false;  // KHR_mesh_quantization is used
   std::vector<int> remap;  // glTF node -> runtime node
   std::map<int, int> skin_offset, rigid_slot, image_texture, material_index;
   int default_material = -1;
+
+  UvSet uv_set(int mi) const {
+    UvSet r;
+    if (mi < 0 || mi >= static_cast<int>(c.m.materials.size())) return r;
+    const tg::TextureInfo& ti = c.m.materials[mi].pbrMetallicRoughness.baseColorTexture;
+    r.set = std::clamp(ti.texCoord, 0, 7);
+    auto it = ti.extensions.find("KHR_texture_transform");
+    if (it == ti.extensions.end() || !it->second.IsObject()) return r;
+    const tg::Value& x = it->second;
+    auto pair = [&](const char* key, glm::vec2 fallback) {
+      std::vector<double> v = number_array(x.Get(key));
+      return v.size() == 2 && finite_all(v) ? glm::vec2(v[0], v[1]) : fallback;
+    };
+    const glm::vec2 offset = pair("offset", glm::vec2(0.0f)), scale = pair("scale", glm::vec2(1.0f));
+    float rotation = 0.0f;
+    if (x.Get("rotation").IsNumber() && std::isfinite(x.Get("rotation").GetNumberAsDouble()))
+      rotation = static_cast<float>(x.Get("rotation").GetNumberAsDouble());
+    if (x.Get("texCoord").IsNumber()) r.set = std::clamp(static_cast<int>(x.Get("texCoord").GetNumberAsDouble()), 0, 7);
+    // translation * rotation * scale, column-major as the extension's GLSL.
+    const glm::mat3 t(1, 0, 0, 0, 1, 0, offset.x, offset.y, 1);
+    const glm::mat3 rot(std::cos(rotation), std::sin(rotation), 0, -std::sin(rotation), std::cos(rotation), 0, 0, 0, 1);
+    const glm::mat3 sc(scale.x, 0, 0, 0, scale.y, 0, 0, 0, 1);
+    r.transform = t * rot * sc;
+    return r;
+  }
 
   Status hierarchy() {
     const auto& nodes = c.m.nodes;
@@ -334,9 +420,11 @@ struct Builder {
       auto attr = [&](const char* name) { auto it = p.attributes.find(name); return it == p.attributes.end() ? -1 : it->second; };
       int ap = attr("POSITION");
       if (ap < 0) return c.err(pw + ".attributes", "has no POSITION");
-      auto pos = read_accessor(c, ap, TINYGLTF_TYPE_VEC3, {kF}, false, pw + ".attributes.POSITION");
+      // KHR_mesh_quantization: integer positions (the node or the inverse bind matrices scale them back),
+      // normalized integer normals, integer texture coordinates.
+      auto pos = read_accessor(c, ap, TINYGLTF_TYPE_VEC3, {kF, kB, kUB, kS, kUS}, false, pw + ".attributes.POSITION");
       if (!pos) return pos.error();
-      const std::size_t nv = pos->size() / 3;
+      std::size_t nv = pos->size() / 3;
       auto same_count = [&](const std::vector<double>& v, int comps, const char* what) -> Status {
         if (v.size() / comps != nv)
           return c.err(pw + ".attributes." + what, "has " + std::to_string(v.size() / comps) + " elements, POSITION has " + std::to_string(nv));
@@ -344,28 +432,45 @@ struct Builder {
       };
       std::vector<double> nrm, uv, jnt, wgt;
       if (int a = attr("NORMAL"); a >= 0) {
-        auto r = read_accessor(c, a, TINYGLTF_TYPE_VEC3, {kF}, false, pw + ".attributes.NORMAL");
+        auto r = read_accessor(c, a, TINYGLTF_TYPE_VEC3, {kF, kB, kS}, true, pw + ".attributes.NORMAL");
         if (!r) return r.error();
         nrm = std::move(*r);
         if (auto s = same_count(nrm, 3, "NORMAL"); !s) return s;
       }
-      if (int a = attr("TEXCOORD_0"); a >= 0) {
-        auto r = read_accessor(c, a, TINYGLTF_TYPE_VEC2, {kF, kUB, kUS}, true, pw + ".attributes.TEXCOORD_0");
+      const UvSet uvset = uv_set(p.material);
+      const std::string uv_name = "TEXCOORD_" + std::to_string(uvset.set);
+      if (int a = attr(uv_name.c_str()); a >= 0) {
+        // Core glTF has normalized unsigned texture coordinates only; with quantization the flag decides.
+        auto r = read_accessor(c, a, TINYGLTF_TYPE_VEC2, {kF, kB, kUB, kS, kUS}, !quantized, pw + ".attributes." + uv_name);
         if (!r) return r.error();
         uv = std::move(*r);
-        if (auto s = same_count(uv, 2, "TEXCOORD_0"); !s) return s;
+        if (auto s = same_count(uv, 2, uv_name.c_str()); !s) return s;
+        for (std::size_t v = 0; v < uv.size(); v += 2) {
+          glm::vec2 t = uvset.transform * glm::vec3(uv[v], uv[v + 1], 1.0);
+          uv[v] = t.x, uv[v + 1] = t.y;
+        }
       }
+      int sets = 0;  // JOINTS_n / WEIGHTS_n pairs read
+      double weight_tolerance = 1e-5;
       if (skinned) {
-        int aj = attr("JOINTS_0"), aw = attr("WEIGHTS_0");
-        if (aj < 0 || aw < 0) return c.err(pw + ".attributes", "a skinned mesh needs JOINTS_0 and WEIGHTS_0");
-        auto rj = read_accessor(c, aj, TINYGLTF_TYPE_VEC4, {kUB, kUS}, false, pw + ".attributes.JOINTS_0");
-        if (!rj) return rj.error();
-        auto rw = read_accessor(c, aw, TINYGLTF_TYPE_VEC4, {kF, kUB, kUS}, true, pw + ".attributes.WEIGHTS_0");
-        if (!rw) return rw.error();
-        jnt = std::move(*rj);
-        wgt = std::move(*rw);
-        if (auto s = same_count(jnt, 4, "JOINTS_0"); !s) return s;
-        if (auto s = same_count(wgt, 4, "WEIGHTS_0"); !s) return s;
+        for (int set = 0; set < 2; ++set) {
+          const std::string jn = "JOINTS_" + std::to_string(set), wn = "WEIGHTS_" + std::to_string(set);
+          int aj = attr(jn.c_str()), aw = attr(wn.c_str());
+          if (set > 0 && (aj < 0 || aw < 0)) break;
+          if (aj < 0 || aw < 0) return c.err(pw + ".attributes", "a skinned mesh needs JOINTS_0 and WEIGHTS_0");
+          auto rj = read_accessor(c, aj, TINYGLTF_TYPE_VEC4, {kUB, kUS}, false, pw + ".attributes." + jn);
+          if (!rj) return rj.error();
+          auto rw = read_accessor(c, aw, TINYGLTF_TYPE_VEC4, {kF, kUB, kUS}, true, pw + ".attributes." + wn);
+          if (!rw) return rw.error();
+          if (auto s = same_count(*rj, 4, jn.c_str()); !s) return s;
+          if (auto s = same_count(*rw, 4, wn.c_str()); !s) return s;
+          jnt.insert(jnt.end(), rj->begin(), rj->end());
+          wgt.insert(wgt.end(), rw->begin(), rw->end());
+          // What "sums to 1" can mean for weights stored this way (the validator's tolerance).
+          if (c.m.accessors[aw].componentType != kF) weight_tolerance = std::max(weight_tolerance, 2.0 / 255.0);
+          ++sets;
+        }
+        out.skin_report.skin_joints = std::max(out.skin_report.skin_joints, joint_count);
       }
       std::vector<std::uint32_t> ind;
       if (p.indices >= 0) {
@@ -385,6 +490,22 @@ struct Builder {
       }
       ind.resize(ind.size() / 3 * 3);
       if (ind.empty()) continue;
+      if (nrm.empty() && p.indices >= 0) {
+        // glTF: without normals a client computes flat ones, so every corner gets a vertex of its own.
+        auto corners = [&](std::vector<double>& a, std::size_t comps, int sets_of) {
+          std::vector<double> b(ind.size() * comps * sets_of);
+          for (int st = 0; st < sets_of; ++st)
+            for (std::size_t k = 0; k < ind.size(); ++k)
+              for (std::size_t e = 0; e < comps; ++e)
+                b[(st * ind.size() + k) * comps + e] = a[(st * nv + ind[k]) * comps + e];
+          a = std::move(b);
+        };
+        corners(*pos, 3, 1);
+        if (!uv.empty()) corners(uv, 2, 1);
+        if (skinned) corners(jnt, 4, sets), corners(wgt, 4, sets);
+        nv = ind.size();
+        for (std::size_t k = 0; k < ind.size(); ++k) ind[k] = static_cast<std::uint32_t>(k);
+      }
       const std::uint32_t base = static_cast<std::uint32_t>(lod.vertices.size());
       for (std::size_t v = 0; v < nv; ++v) {
         Vertex vx;
@@ -392,17 +513,44 @@ struct Builder {
         if (!nrm.empty()) vx.normal = glm::vec3(nrm[3 * v], nrm[3 * v + 1], nrm[3 * v + 2]);
         if (!uv.empty()) vx.uv = glm::vec2(uv[2 * v], uv[2 * v + 1]);
         if (skinned) {
+          // Up to eight influences (JOINTS_0 and JOINTS_1); the four heaviest are kept.
+          std::pair<double, int> inf[8];
+          const int n_inf = 4 * sets;
+          for (int k = 0; k < n_inf; ++k) {
+            const std::size_t at = static_cast<std::size_t>(k / 4) * nv * 4 + 4 * v + k % 4;
+            double j = jnt[at];
+            double wk = std::max(0.0, wgt[at]);
+            if (wk > 0.0 && j >= joint_count)
+              return c.err(pw + ".attributes.JOINTS_" + std::to_string(k / 4),
+                           "vertex " + std::to_string(v) + " uses joint " + std::to_string(static_cast<long long>(j)) +
+                               " of a skin with " + std::to_string(joint_count));
+            if (j >= joint_count) wk = 0.0, j = 0;
+            inf[k] = {wk, static_cast<int>(j)};
+          }
+          double stored = 0.0, total = 0.0;  // the weights as stored; the kept ones' sum
+          int nonzero = 0;
+          for (int k = 0; k < n_inf; ++k) {
+            stored += wgt[static_cast<std::size_t>(k / 4) * nv * 4 + 4 * v + k % 4];
+            total += inf[k].first;
+            nonzero += inf[k].first > 0.0;
+          }
+          if (n_inf > 4)  // stable: equal weights keep their order
+            std::stable_sort(inf, inf + n_inf, [](const auto& a, const auto& b) { return a.first > b.first; });
+          SkinReport& rep = out.skin_report;
+          ++rep.skinned_vertices;
+          rep.max_influences = std::max(rep.max_influences, nonzero);
+          rep.worst_weight_sum_error = std::max(rep.worst_weight_sum_error, std::abs(stored - 1.0));
+          if (std::abs(stored - 1.0) > weight_tolerance) rep.weights_normalized = false;
+          if (nonzero > 4) {
+            ++rep.vertices_over_four;
+            double dropped = 0.0;
+            for (int k = 4; k < n_inf; ++k) dropped += inf[k].first;
+            rep.worst_dropped_weight = std::max(rep.worst_dropped_weight, total > 0.0 ? dropped / total : 0.0);
+          }
           glm::vec4 w(0.0f);
           for (int k = 0; k < 4; ++k) {
-            double j = jnt[4 * v + k];
-            double wk = std::max(0.0, wgt[4 * v + k]);
-            if (wk > 0.0 && j >= joint_count)
-              return c.err(pw + ".attributes.JOINTS_0", "vertex " + std::to_string(v) + " uses joint " +
-                                                            std::to_string(static_cast<long long>(j)) + " of a skin with " +
-                                                            std::to_string(joint_count));
-            if (j >= joint_count) wk = 0.0, j = 0;
-            vx.joints[k] = static_cast<std::uint16_t>(palette_offset + static_cast<int>(j));
-            w[k] = static_cast<float>(wk);
+            vx.joints[k] = static_cast<std::uint16_t>(palette_offset + inf[k].second);
+            w[k] = static_cast<float>(inf[k].first);
           }
           float sum = w.x + w.y + w.z + w.w;
           if (sum > 0.0f) {
@@ -416,7 +564,7 @@ struct Builder {
         }
         lod.vertices.push_back(vx);
       }
-      if (nrm.empty()) {  // smooth (indexed) or flat (unindexed) normals from the triangles
+      if (nrm.empty()) {  // flat normals: every corner has its own vertex (above)
         std::vector<glm::vec3> acc(nv, glm::vec3(0.0f));
         for (std::size_t t = 0; t < ind.size(); t += 3) {
           glm::vec3 a = lod.vertices[base + ind[t]].position, b = lod.vertices[base + ind[t + 1]].position,
@@ -575,6 +723,146 @@ struct Builder {
   }
 };
 
+// EXT_meshopt_compression's fallback buffer has no data in a .glb (gltfpack -c), but tinygltf 2.7 gives every
+// buffer without a uri the BIN chunk and refuses the file when the fallback is the longer one. Returns the
+// file with each such fallback's byteLength set to 1 (tinygltf cannot hold an empty buffer; its views are
+// decoded from the compressed buffer instead), or nothing when no buffer is a fallback.
+std::optional<std::vector<unsigned char>> glb_without_fallback_lengths(const std::vector<unsigned char>& glb) {
+  auto u32 = [&](std::size_t at) {
+    std::uint32_t v;
+    std::memcpy(&v, glb.data() + at, 4);
+    return v;
+  };
+  if (glb.size() < 20 || std::memcmp(glb.data(), "glTF", 4) != 0 || u32(12) > glb.size() - 20 ||
+      std::memcmp(glb.data() + 16, "JSON", 4) != 0)
+    return std::nullopt;  // not for us to judge: tinygltf reports it
+  const std::size_t json_len = u32(12);
+  const std::string text(reinterpret_cast<const char*>(glb.data()) + 20, json_len);
+  if (text.find("EXT_meshopt_compression") == std::string::npos) return std::nullopt;
+  nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
+  if (j.is_discarded() || !j.is_object() || !j.contains("buffers") || !j["buffers"].is_array()) return std::nullopt;
+  bool changed = false;
+  for (std::size_t b = 1; b < j["buffers"].size(); ++b) {
+    nlohmann::json& buf = j["buffers"][b];
+    if (!buf.is_object() || buf.contains("uri")) continue;
+    const auto ext = buf.find("extensions");
+    if (ext == buf.end() || !ext->is_object() || !ext->contains("EXT_meshopt_compression")) continue;
+    const nlohmann::json& e = (*ext)["EXT_meshopt_compression"];
+    if (e.is_object() && e.value("fallback", false)) buf["byteLength"] = 1, changed = true;
+  }
+  if (!changed) return std::nullopt;
+  std::string out_json = j.dump();
+  while (out_json.size() % 4) out_json.push_back(' ');
+  std::vector<unsigned char> out(glb.begin(), glb.begin() + 12);
+  auto put = [&](std::uint32_t v) {
+    unsigned char b[4];
+    std::memcpy(b, &v, 4);
+    out.insert(out.end(), b, b + 4);
+  };
+  put(static_cast<std::uint32_t>(out_json.size()));
+  out.insert(out.end(), glb.begin() + 16, glb.begin() + 20);
+  out.insert(out.end(), out_json.begin(), out_json.end());
+  out.insert(out.end(), glb.begin() + 20 + json_len, glb.end());  // the BIN chunk, as it was
+  const std::uint32_t total = static_cast<std::uint32_t>(out.size());
+  std::memcpy(out.data() + 8, &total, 4);
+  return out;
+}
+
+// The extensions this loader reads; a file that requires any other is refused by name.
+// (KHR_meshopt_compression is not: its vertex data is in meshopt's version 1 format, which meshoptimizer
+// 0.18, Debian 12's, cannot decode.)
+constexpr const char* kReadExtensions[] = {"KHR_mesh_quantization", "KHR_texture_transform", "EXT_meshopt_compression",
+                                           "MSFT_lod"};
+
+Status check_required_extensions(const Ctx& c) {
+  for (std::size_t i = 0; i < c.m.extensionsRequired.size(); ++i) {
+    const std::string& e = c.m.extensionsRequired[i];
+    if (std::find_if(std::begin(kReadExtensions), std::end(kReadExtensions), [&](const char* k) { return e == k; }) !=
+        std::end(kReadExtensions))
+      continue;
+    std::string known;
+    for (const char* k : kReadExtensions) known += std::string(known.empty() ? "" : ", ") + k;
+    return c.err("$.extensionsRequired[" + std::to_string(i) + "]",
+                 "requires " + e + ", which this loader does not read (it reads " + known + ")");
+  }
+  return Ok{};
+}
+
+// EXT_meshopt_compression: every compressed buffer view is decoded into a buffer of its own and pointed at
+// it, so accessors read plain bytes; the fallback buffer the views named is never read.
+Status decode_meshopt(tg::Model& m, const Ctx& c) {
+  for (std::size_t vi = 0; vi < m.bufferViews.size(); ++vi) {
+    auto& exts = m.bufferViews[vi].extensions;
+    auto it = exts.find("EXT_meshopt_compression");
+    if (it == exts.end()) continue;
+    const tg::Value& x = it->second;
+    const std::string w = idx("bufferViews", static_cast<int>(vi)) + ".extensions." + it->first;
+    auto whole = [&](const char* key, bool required, std::size_t fallback, std::size_t& v) -> Status {
+      const tg::Value& n = x.Get(key);
+      if (!n.IsNumber()) {
+        if (required) return c.err(w + "." + key, "is missing or not a number");
+        v = fallback;
+        return Ok{};
+      }
+      const double d = n.GetNumberAsDouble();
+      if (!(d >= 0.0 && d <= 4294967295.0) || d != std::floor(d))
+        return c.err(w + "." + key, "must be a whole number from 0 (got " + std::to_string(d) + ")");
+      v = static_cast<std::size_t>(d);
+      return Ok{};
+    };
+    std::size_t buffer = 0, offset = 0, length = 0, stride = 0, count = 0;
+    if (auto s = whole("buffer", true, 0, buffer); !s) return s;
+    if (auto s = whole("byteOffset", false, 0, offset); !s) return s;
+    if (auto s = whole("byteLength", true, 0, length); !s) return s;
+    if (auto s = whole("byteStride", true, 0, stride); !s) return s;
+    if (auto s = whole("count", true, 0, count); !s) return s;
+    const std::string mode = x.Get("mode").IsString() ? x.Get("mode").Get<std::string>() : "";
+    const std::string filter = x.Get("filter").IsString() ? x.Get("filter").Get<std::string>() : "NONE";
+    if (buffer >= m.buffers.size()) return c.err(w + ".buffer", "buffer " + std::to_string(buffer) + " does not exist");
+    const auto& src = m.buffers[buffer].data;
+    if (offset > src.size() || length > src.size() - offset)
+      return c.err(w, "byte range [" + std::to_string(offset) + ", " + std::to_string(offset + length) +
+                          ") lies outside its buffer of " + std::to_string(src.size()) + " bytes");
+    if (count == 0 || count > (1u << 26)) return c.err(w + ".count", "must be from 1 to 2^26 (got " + std::to_string(count) + ")");
+    std::vector<unsigned char> dst;
+    int rc = -1;
+    if (mode == "ATTRIBUTES") {
+      if (stride == 0 || stride % 4 != 0 || stride > 256)
+        return c.err(w + ".byteStride", "must be a multiple of 4 up to 256 for ATTRIBUTES (got " + std::to_string(stride) + ")");
+      dst.resize(count * stride);
+      rc = meshopt_decodeVertexBuffer(dst.data(), count, stride, src.data() + offset, length);
+      if (rc == 0 && filter != "NONE") {
+        if (filter == "OCTAHEDRAL" && (stride == 4 || stride == 8)) meshopt_decodeFilterOct(dst.data(), count, stride);
+        else if (filter == "QUATERNION" && stride == 8) meshopt_decodeFilterQuat(dst.data(), count, stride);
+        else if (filter == "EXPONENTIAL") meshopt_decodeFilterExp(dst.data(), count, stride);
+        else return c.err(w + ".filter", "filter \"" + filter + "\" with a stride of " + std::to_string(stride) + " is not one EXT_meshopt_compression defines");
+      }
+    } else if (mode == "TRIANGLES" || mode == "INDICES") {
+      if (stride != 2 && stride != 4)
+        return c.err(w + ".byteStride", "must be 2 or 4 for " + mode + " (got " + std::to_string(stride) + ")");
+      if (mode == "TRIANGLES" && count % 3 != 0) return c.err(w + ".count", "must be a multiple of 3 for TRIANGLES");
+      if (filter != "NONE") return c.err(w + ".filter", "only ATTRIBUTES take a filter");
+      dst.resize(count * stride);
+      rc = mode == "TRIANGLES" ? meshopt_decodeIndexBuffer(dst.data(), count, stride, src.data() + offset, length)
+                               : meshopt_decodeIndexSequence(dst.data(), count, stride, src.data() + offset, length);
+    } else {
+      return c.err(w + ".mode", "must be ATTRIBUTES, TRIANGLES or INDICES (got \"" + mode + "\")");
+    }
+    if (rc != 0)
+      return c.err(w, "the compressed data does not decode (corrupt, or a newer meshopt format than meshoptimizer " +
+                          std::to_string(MESHOPTIMIZER_VERSION / 1000) + "." + std::to_string(MESHOPTIMIZER_VERSION % 1000 / 10) +
+                          " reads)");
+    tg::Buffer decoded;
+    decoded.data = std::move(dst);
+    tg::BufferView& bv = m.bufferViews[vi];
+    bv.buffer = static_cast<int>(m.buffers.size());
+    bv.byteOffset = 0;
+    bv.byteLength = decoded.data.size();
+    m.buffers.push_back(std::move(decoded));
+  }
+  return Ok{};
+}
+
 }  // namespace
 
 Result<Model> load_model(const std::string& path, const LoadOptions& options) {
@@ -590,7 +878,18 @@ Result<Model> load_model(const std::string& path, const LoadOptions& options) {
   bool ok = false;
   const bool binary = fs::path(path).extension() == ".glb" || fs::path(path).extension() == ".GLB";
   try {
-    ok = binary ? loader.LoadBinaryFromFile(&gm, &err, &warn, path) : loader.LoadASCIIFromFile(&gm, &err, &warn, path);
+    if (binary) {
+      std::vector<unsigned char> bytes(size);
+      std::ifstream in(path, std::ios::binary);
+      if (!in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(size)))
+        return Error{path, "", "cannot read the file"};
+      if (auto patched = glb_without_fallback_lengths(bytes)) bytes = std::move(*patched);
+      if (bytes.size() > 0xffffffffu) return Error{path, "", "file is larger than 4 GiB, the most a .glb can be"};
+      const std::string base = fs::path(path).parent_path().string();
+      ok = loader.LoadBinaryFromMemory(&gm, &err, &warn, bytes.data(), static_cast<unsigned int>(bytes.size()), base);
+    } else {
+      ok = loader.LoadASCIIFromFile(&gm, &err, &warn, path);
+    }
   } catch (const std::exception& e) {
     return Error{path, "", std::string("parse error: ") + e.what()};
   } catch (...) {
@@ -604,7 +903,10 @@ Result<Model> load_model(const std::string& path, const LoadOptions& options) {
   model.name = fs::path(path).stem().string();
   Ctx c{gm, path};
   try {
-    Builder b{c, model, {}, {}, {}, {}, {}};
+    if (auto s = check_required_extensions(c); !s) return s.error();
+    if (auto s = decode_meshopt(gm, c); !s) return s.error();
+    Builder b{c, model};
+    b.quantized = std::find(gm.extensionsUsed.begin(), gm.extensionsUsed.end(), "KHR_mesh_quantization") != gm.extensionsUsed.end();
     if (auto s = b.hierarchy(); !s) return s.error();
     if (auto s = b.meshes(); !s) return s.error();
     if (auto s = b.animations(); !s) return s.error();

@@ -1,6 +1,9 @@
 // Image tests under EGL (llvmpipe without a GPU): geometry and impostor renderings of the same
 // frame must agree (PSNR over covered pixels), and the crowd path must draw what the plan says.
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -125,6 +128,64 @@ TEST_P(PortraitPsnr, GeometryAndImpostorAgree) {
 INSTANTIATE_TEST_SUITE_P(SharedModels, PortraitPsnr,
                          ::testing::Values("CesiumMan.glb", "Fox.glb", "RiggedSimple.gltf", "SimpleSkin.gltf"),
                          [](const auto& param_info) { return fs::path(param_info.param).stem().string(); });
+
+// The shared models packed by gltfpack (tools/node_modules, npm) as game pipelines ship them:
+// KHR_mesh_quantization (integer positions scaled back by the inverse bind matrices, 8-bit normals,
+// 12-bit texture coordinates scaled by KHR_texture_transform), EXT_meshopt_compression (-c), with
+// octahedral, quaternion and exponential filters (-cc). With the clips kept as they are (-af 0) the
+// pictures match the originals' to the quantization; gltfpack's default also resamples the clips at
+// 30 Hz with 12-bit rotations, which moves the limbs a little.
+struct PackCase {
+  const char* args;
+  double min_psnr_db;
+};
+
+TEST(GltfpackCopies, DrawLikeTheOriginals) {
+  REQUIRE_GL();
+  const std::string gltfpack = std::string(BB_SOURCE_DIR) + "/tools/node_modules/.bin/gltfpack";
+  if (!fs::exists(gltfpack)) GTEST_SKIP() << "gltfpack absent (scripts/setup.sh installs it with npm): " << gltfpack;
+  fs::path dir = fs::temp_directory_path() / "bb_gltfpack_test";
+  fs::create_directories(dir);
+  for (const char* name : {"CesiumMan", "Fox"}) {
+    std::string src = std::string(BB_SHARED_DATA_DIR) + "/gltf/" + name + ".glb";
+    if (!fs::exists(src)) GTEST_SKIP() << "shared data absent: " << src;
+    auto orig = load_model(src);
+    ASSERT_TRUE(orig.ok()) << orig.error().message();
+    for (const PackCase& pc : {PackCase{"-af 0", 32.0}, PackCase{"-c -af 0", 32.0}, PackCase{"-cc -af 0", 30.0},
+                               PackCase{"-cc", 22.0}}) {
+      const fs::path out = dir / (std::string(name) + ".glb");
+      fs::remove(out);
+      const std::string cmd = gltfpack + " -i " + src + " -o " + out.string() + " " + pc.args + " > /dev/null 2>&1";
+      ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
+      auto packed = load_model(out.string());
+      ASSERT_TRUE(packed.ok()) << pc.args << ": " << packed.error().message();
+      EXPECT_EQ(packed->lods[0].triangle_count(), orig->lods[0].triangle_count()) << pc.args;
+      ASSERT_EQ(packed->clips.size(), orig->clips.size()) << pc.args;
+      for (std::size_t c = 0; c < orig->clips.size(); ++c) EXPECT_EQ(packed->clips[c].name, orig->clips[c].name);
+      EXPECT_NEAR(packed->radius / orig->radius, 1.0, 0.01) << pc.args;
+      EXPECT_TRUE(packed->skin_report.weights_normalized) << pc.args;
+      double worst = 99.0;
+      for (const auto& view : {std::array<float, 3>{0, 10, 0.3f}, std::array<float, 3>{130, 5, 1.1f}}) {
+        PortraitOptions o;
+        o.azimuth_deg = view[0];
+        o.elevation_deg = view[1];
+        o.time = view[2];
+        o.width = o.height = 256;
+        o.mode = RenderMode::kGeometry;
+        auto a = render_portrait(*orig, o);
+        auto b = render_portrait(*packed, o);
+        ASSERT_TRUE(a.ok() && b.ok());
+        int covered = 0;
+        const double psnr = covered_psnr(*a, *b, &covered);
+        EXPECT_GT(covered, 400);
+        worst = std::min(worst, psnr);
+      }
+      std::printf("%s packed with gltfpack %s: PSNR against the original %.2f dB (worst of two views)\n", name, pc.args,
+                  worst);
+      EXPECT_GT(worst, pc.min_psnr_db) << name << " " << pc.args;
+    }
+  }
+}
 
 }  // namespace
 }  // namespace bb::runtime

@@ -151,6 +151,18 @@ struct PartIndices {
   std::vector<Range> ranges;  // [primitive * part_count + part]
 };
 
+// The skin as the file stores it, before the loader fixed it up (each vertex keeps its four heaviest
+// influences, weights renormalized to sum to 1): for `inspect`, and for anyone checking an asset.
+struct SkinReport {
+  std::size_t skinned_vertices = 0;   // over every level's skinned primitives
+  int max_influences = 0;             // most non-zero weights on one vertex (JOINTS_0 and JOINTS_1: up to 8)
+  double worst_weight_sum_error = 0;  // largest |sum of a vertex's stored weights - 1|
+  bool weights_normalized = true;     // every sum within 1e-5 of 1 (2/255 for integer weights)
+  std::size_t vertices_over_four = 0; // vertices that lost their fifth to eighth influences
+  double worst_dropped_weight = 0;    // the largest share of one vertex's weight lost that way
+  int skin_joints = 0;                // joints of the largest skin used
+};
+
 class Model {
  public:
   std::string name;  // file stem
@@ -160,6 +172,7 @@ class Model {
   std::vector<Material> materials;   // >= 1
   std::vector<Texture> textures;
   std::vector<Clip> clips;           // may be empty (then the rest pose is a 0 s clip)
+  SkinReport skin_report;            // set by load_model
 
   // Section 4.2: Ta, the centre of the bounds of every pose of every clip (model space, measured
   // relative to the root's horizontal travel, see BakedClip::root_offset, so a clip that walks

@@ -1,0 +1,284 @@
+// The loader on what other tools write: KHR_mesh_quantization, sparse accessors, KHR_texture_transform,
+// EXT_meshopt_compression, eight influences, flat normals when a file has none, and required extensions
+// it does not read. Tiny hand-made files with exact answers (the real models packed by gltfpack are in
+// render_test.cpp).
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <meshoptimizer.h>
+#include <nlohmann/json.hpp>
+
+#include "bb/runtime/model.h"
+
+namespace bb::runtime {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+constexpr int kByte = 5120, kUByte = 5121, kShort = 5122, kUShort = 5123, kFloat = 5126;
+
+// A .gltf with one external .bin, built a view and an accessor at a time.
+struct GltfFile {
+  json j = {{"asset", {{"version", "2.0"}}}, {"bufferViews", json::array()}, {"accessors", json::array()}};
+  std::string bin;
+
+  template <class T>
+  int view(const std::vector<T>& data, int stride = 0) {
+    while (bin.size() % 4) bin.push_back('\0');
+    json v = {{"buffer", 0}, {"byteOffset", bin.size()}, {"byteLength", data.size() * sizeof(T)}};
+    if (stride) v["byteStride"] = stride;
+    bin.append(reinterpret_cast<const char*>(data.data()), data.size() * sizeof(T));
+    j["bufferViews"].push_back(v);
+    return static_cast<int>(j["bufferViews"].size()) - 1;
+  }
+  int accessor(int view, int component_type, int count, const char* type, bool normalized = false) {
+    json a = {{"componentType", component_type}, {"count", count}, {"type", type}};
+    if (view >= 0) a["bufferView"] = view;
+    if (normalized) a["normalized"] = true;
+    j["accessors"].push_back(a);
+    return static_cast<int>(j["accessors"].size()) - 1;
+  }
+  json& last_accessor() { return j["accessors"].back(); }
+  // One mesh of one primitive on node 0 of scene 0.
+  void mesh(const json& attributes, int indices = -1, int material = -1) {
+    json prim = {{"attributes", attributes}};
+    if (indices >= 0) prim["indices"] = indices;
+    if (material >= 0) prim["material"] = material;
+    j["meshes"] = json::array({{{"primitives", json::array({prim})}}});
+    if (!j.contains("nodes")) j["nodes"] = json::array({{{"mesh", 0}}});
+    j["scenes"] = json::array({{{"nodes", json::array({0})}}});
+    j["scene"] = 0;
+  }
+  std::string write(const std::string& name) {
+    fs::path dir = fs::temp_directory_path() / "bb_gltf_loader_test";
+    fs::create_directories(dir);
+    j["buffers"] = json::array({{{"uri", name + ".bin"}, {"byteLength", bin.size()}}});
+    std::ofstream(dir / (name + ".bin"), std::ios::binary) << bin;
+    std::ofstream(dir / (name + ".gltf")) << j.dump(1);
+    return (dir / (name + ".gltf")).string();
+  }
+};
+
+void expect_vec(glm::vec3 got, glm::vec3 want, float tol = 0.0f) {
+  EXPECT_NEAR(got.x, want.x, tol);
+  EXPECT_NEAR(got.y, want.y, tol);
+  EXPECT_NEAR(got.z, want.z, tol);
+}
+
+// KHR_mesh_quantization: positions as normalized shorts, normals as normalized bytes, texture coordinates as
+// plain (not normalized) unsigned shorts in set 1, which the material's KHR_texture_transform picks and
+// scales back. A sparse accessor replaces the third position.
+TEST(GltfLoader, QuantizedAttributesSparseAndTextureTransform) {
+  GltfFile f;
+  int pos = f.accessor(f.view(std::vector<std::int16_t>{32767, 0, 0, 0, 32767, 0, 0, 0, -32767}), kShort, 3, "VEC3", true);
+  // Sparse: element 2 becomes (16384, -32767, 0) (normalized: 16384 / 32767, -1, 0).
+  int sidx = f.view(std::vector<std::uint8_t>{2, 0, 0, 0});
+  int sval = f.view(std::vector<std::int16_t>{16384, -32767, 0});
+  f.last_accessor()["sparse"] = {{"count", 1},
+                                  {"indices", {{"bufferView", sidx}, {"componentType", kUByte}}},
+                                  {"values", {{"bufferView", sval}}}};
+  int nrm = f.accessor(f.view(std::vector<std::int8_t>{0, 0, 127, 0, 0, 0, 127, 0, 0, 0, 127, 0}, 4), kByte, 3, "VEC3", true);
+  int uv0 = f.accessor(f.view(std::vector<float>{0.9f, 0.9f, 0.9f, 0.9f, 0.9f, 0.9f}), kFloat, 3, "VEC2");
+  int uv1 = f.accessor(f.view(std::vector<std::uint16_t>{0, 0, 1024, 0, 0, 2048}), kUShort, 3, "VEC2");
+  f.mesh({{"POSITION", pos}, {"NORMAL", nrm}, {"TEXCOORD_0", uv0}, {"TEXCOORD_1", uv1}}, -1, 0);
+  f.j["materials"] = json::array(
+      {{{"pbrMetallicRoughness",
+         {{"baseColorTexture",
+           {{"index", 0},
+            {"texCoord", 0},
+            {"extensions",
+             {{"KHR_texture_transform", {{"offset", {0.5, 0.25}}, {"scale", {1.0 / 4096, 1.0 / 4096}}, {"texCoord", 1}}}}}}}}}}});
+  f.j["textures"] = json::array({json::object()});
+  f.j["extensionsUsed"] = {"KHR_mesh_quantization", "KHR_texture_transform"};
+  f.j["extensionsRequired"] = {"KHR_mesh_quantization"};
+  auto m = load_model(f.write("quantized"));
+  ASSERT_TRUE(m.ok()) << m.error().message();
+  const auto& v = m->lods[0].vertices;
+  ASSERT_EQ(v.size(), 3u);
+  expect_vec(v[0].position, {1, 0, 0});
+  expect_vec(v[1].position, {0, 1, 0});
+  expect_vec(v[2].position, {static_cast<float>(16384 / 32767.0), -1, 0});
+  for (const auto& x : v) expect_vec(x.normal, {0, 0, 1});
+  EXPECT_EQ(v[0].uv, glm::vec2(0.5f, 0.25f));
+  EXPECT_EQ(v[1].uv, glm::vec2(0.75f, 0.25f));
+  EXPECT_EQ(v[2].uv, glm::vec2(0.5f, 0.75f));
+}
+
+// The transform's rotation turns the coordinates counter-clockwise, as the extension's matrix says.
+TEST(GltfLoader, TextureTransformRotation) {
+  GltfFile f;
+  int pos = f.accessor(f.view(std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0}), kFloat, 3, "VEC3");
+  int uv = f.accessor(f.view(std::vector<float>{0, 0, 1, 0, 0, 1}), kFloat, 3, "VEC2");
+  f.mesh({{"POSITION", pos}, {"TEXCOORD_0", uv}}, -1, 0);
+  f.j["materials"] = json::array({{{"pbrMetallicRoughness",
+                                     {{"baseColorTexture",
+                                       {{"index", 0},
+                                        {"extensions", {{"KHR_texture_transform", {{"rotation", std::acos(-1.0) / 2}, {"offset", {0, 1}}}}}}}}}}}});
+  f.j["textures"] = json::array({json::object()});
+  auto m = load_model(f.write("rotation"));
+  ASSERT_TRUE(m.ok()) << m.error().message();
+  const auto& v = m->lods[0].vertices;
+  EXPECT_NEAR(v[1].uv.x, 0.0f, 1e-6f);  // (1, 0) turned a quarter turn is (0, 1), then offset by (0, 1)
+  EXPECT_NEAR(v[1].uv.y, 2.0f, 1e-6f);
+  EXPECT_NEAR(v[2].uv.x, -1.0f, 1e-6f);  // (0, 1) -> (-1, 0) -> (-1, 1)
+  EXPECT_NEAR(v[2].uv.y, 1.0f, 1e-6f);
+}
+
+// A skin with JOINTS_1 / WEIGHTS_1: the four heaviest of eight influences are kept, renormalized, and the
+// skin report says what was dropped.
+TEST(GltfLoader, EightInfluencesKeepTheFourHeaviest) {
+  GltfFile f;
+  int pos = f.accessor(f.view(std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0}), kFloat, 3, "VEC3");
+  int j0 = f.accessor(f.view(std::vector<std::uint8_t>{0, 1, 2, 3, 0, 0, 0, 0, 0, 0, 0, 0}), kUByte, 3, "VEC4");
+  int w0 = f.accessor(f.view(std::vector<float>{0.05f, 0.3f, 0.05f, 0.1f, 1, 0, 0, 0, 1, 0, 0, 0}), kFloat, 3, "VEC4");
+  int j1 = f.accessor(f.view(std::vector<std::uint8_t>{4, 5, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0}), kUByte, 3, "VEC4");
+  int w1 = f.accessor(f.view(std::vector<float>{0.4f, 0.1f, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0}), kFloat, 3, "VEC4");
+  f.j["nodes"] = json::array({{{"mesh", 0}, {"skin", 0}}, {{"children", {2, 3, 4, 5, 6, 7}}}, json::object(),
+                              json::object(), json::object(), json::object(), json::object(), json::object()});
+  f.j["skins"] = json::array({{{"joints", {2, 3, 4, 5, 6, 7}}}});
+  f.mesh({{"POSITION", pos}, {"JOINTS_0", j0}, {"WEIGHTS_0", w0}, {"JOINTS_1", j1}, {"WEIGHTS_1", w1}});
+  f.j["scenes"] = json::array({{{"nodes", {0, 1}}}});
+  auto m = load_model(f.write("eight"));
+  ASSERT_TRUE(m.ok()) << m.error().message();
+  const Vertex& v = m->lods[0].vertices[0];
+  ASSERT_EQ(m->palette.size(), 6u);  // the skin's joints, in its order: palette entry = joint index
+  // Kept: joint 4 (0.4), 1 (0.3), then 3 and 5 (0.1 each, in the file's order); dropped 0 and 2 (0.05 each).
+  EXPECT_EQ(v.joints, glm::u16vec4(4, 1, 3, 5));
+  EXPECT_NEAR(v.weights.x, 0.4f / 0.9f, 1e-6f);
+  EXPECT_NEAR(v.weights.y, 0.3f / 0.9f, 1e-6f);
+  EXPECT_NEAR(v.weights.z, 0.1f / 0.9f, 1e-6f);
+  EXPECT_NEAR(v.weights.w, 0.1f / 0.9f, 1e-6f);
+  const SkinReport& r = m->skin_report;
+  EXPECT_EQ(r.skinned_vertices, 3u);
+  EXPECT_EQ(r.max_influences, 6);
+  EXPECT_EQ(r.vertices_over_four, 1u);
+  EXPECT_NEAR(r.worst_dropped_weight, 0.1, 1e-6);
+  EXPECT_TRUE(r.weights_normalized);
+  EXPECT_EQ(r.skin_joints, 6);
+}
+
+// glTF: a mesh without normals is drawn with flat ones, indexed or not.
+TEST(GltfLoader, IndexedMeshWithoutNormalsIsFlatShaded) {
+  GltfFile f;
+  int pos = f.accessor(f.view(std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1}), kFloat, 4, "VEC3");
+  int ind = f.accessor(f.view(std::vector<std::uint16_t>{0, 1, 2, 0, 3, 1}), kUShort, 6, "SCALAR");
+  f.mesh({{"POSITION", pos}}, ind);
+  auto m = load_model(f.write("flat"));
+  ASSERT_TRUE(m.ok()) << m.error().message();
+  const auto& v = m->lods[0].vertices;
+  ASSERT_EQ(v.size(), 6u);
+  for (int k = 0; k < 3; ++k) expect_vec(v[k].normal, {0, 0, 1});
+  for (int k = 3; k < 6; ++k) expect_vec(v[k].normal, {0, 1, 0});
+  expect_vec(v[4].position, {0, 0, 1});
+}
+
+// EXT_meshopt_compression: positions (attributes), normals (octahedral filter) and indices (triangles)
+// encoded with meshoptimizer decode to what was encoded. A damaged stream is an error naming the view.
+TEST(GltfLoader, MeshoptCompressedViewsDecode) {
+  const std::vector<float> positions{0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+  const std::vector<float> normals{0, 0, 1, 0, 0.6f, 0, 0.8f, 0, -0.6f, 0, 0.8f, 0, 1, 0, 0, 0};  // xyz + pad
+  const std::vector<std::uint16_t> indices{0, 1, 2, 0, 3, 1};
+  std::vector<std::uint8_t> pos_enc(meshopt_encodeVertexBufferBound(4, 12));
+  pos_enc.resize(meshopt_encodeVertexBuffer(pos_enc.data(), pos_enc.size(), positions.data(), 4, 12));
+  std::vector<std::int8_t> oct(16);
+  meshopt_encodeFilterOct(oct.data(), 4, 4, 8, normals.data());
+  std::vector<std::uint8_t> nrm_enc(meshopt_encodeVertexBufferBound(4, 4));
+  nrm_enc.resize(meshopt_encodeVertexBuffer(nrm_enc.data(), nrm_enc.size(), oct.data(), 4, 4));
+  std::vector<std::uint8_t> ind_enc(meshopt_encodeIndexBufferBound(6, 4));
+  ind_enc.resize(meshopt_encodeIndexBuffer(ind_enc.data(), ind_enc.size(), indices.data(), 6));
+
+  for (bool damaged : {false, true}) {
+    GltfFile f;
+    // Buffer 0 holds the compressed streams; the views point at buffer 1, the fallback: zeros here (a .gltf
+    // buffer needs a file; gltfpack's .glb files leave it without data).
+    auto compressed = [&](const std::vector<std::uint8_t>& enc, std::size_t count, int stride, const char* mode,
+                          const char* filter, bool vertex) {
+      int v = f.view(enc);
+      json& bv = f.j["bufferViews"][v];
+      json ext = {{"buffer", 0}, {"byteOffset", bv["byteOffset"]}, {"byteLength", enc.size()}, {"byteStride", stride},
+                  {"count", count}, {"mode", mode}};
+      if (filter) ext["filter"] = filter;
+      bv = {{"buffer", 1}, {"byteOffset", 0}, {"byteLength", count * stride}, {"extensions", {{"EXT_meshopt_compression", ext}}}};
+      if (vertex) bv["byteStride"] = stride;
+      return v;
+    };
+    std::vector<std::uint8_t> pe = pos_enc;
+    if (damaged) pe.resize(pe.size() / 2);
+    int pos = f.accessor(compressed(pe, 4, 12, "ATTRIBUTES", nullptr, true), kFloat, 4, "VEC3");
+    int nrm = f.accessor(compressed(nrm_enc, 4, 4, "ATTRIBUTES", "OCTAHEDRAL", true), kByte, 4, "VEC3", true);
+    int ind = f.accessor(compressed(ind_enc, 6, 2, "TRIANGLES", nullptr, false), kUShort, 6, "SCALAR");
+    f.mesh({{"POSITION", pos}, {"NORMAL", nrm}}, ind);
+    f.j["extensionsUsed"] = {"EXT_meshopt_compression"};
+    f.j["extensionsRequired"] = {"EXT_meshopt_compression"};
+    std::string path = f.write(damaged ? "meshopt_damaged" : "meshopt");
+    f.j["buffers"].push_back(
+        {{"uri", "zeros.bin"}, {"byteLength", 64}, {"extensions", {{"EXT_meshopt_compression", {{"fallback", true}}}}}});
+    std::ofstream(path) << f.j.dump(1);
+    std::ofstream(fs::path(path).parent_path() / "zeros.bin", std::ios::binary) << std::string(64, '\0');
+    auto m = load_model(path);
+    if (damaged) {
+      ASSERT_FALSE(m.ok());
+      EXPECT_EQ(m.error().where, "$.bufferViews[0].extensions.EXT_meshopt_compression") << m.error().message();
+      EXPECT_NE(m.error().message().find("does not decode"), std::string::npos) << m.error().message();
+      continue;
+    }
+    ASSERT_TRUE(m.ok()) << m.error().message();
+    const MeshLod& lod = m->lods[0];
+    ASSERT_EQ(lod.vertices.size(), 4u);
+    for (int k = 0; k < 4; ++k) {
+      expect_vec(lod.vertices[k].position, {positions[3 * k], positions[3 * k + 1], positions[3 * k + 2]});
+      expect_vec(lod.vertices[k].normal, {normals[4 * k], normals[4 * k + 1], normals[4 * k + 2]}, 0.02f);
+    }
+    // The index codec may start a triangle at another corner; the winding stays.
+    auto canonical = [](std::vector<std::uint32_t> t) {
+      for (std::size_t k = 0; k + 2 < t.size(); k += 3)
+        while (t[k] > t[k + 1] || t[k] > t[k + 2]) std::rotate(t.begin() + k, t.begin() + k + 1, t.begin() + k + 3);
+      return t;
+    };
+    EXPECT_EQ(canonical(lod.indices), canonical({indices.begin(), indices.end()}));
+  }
+}
+
+// A required extension the loader does not read, and broken sparse accessors, are errors naming the place.
+TEST(GltfLoader, UnreadRequiredExtensionsAndBadSparseAccessorsAreErrors) {
+  {
+    GltfFile f;
+    f.mesh({{"POSITION", f.accessor(f.view(std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0}), kFloat, 3, "VEC3")}});
+    f.j["extensionsUsed"] = {"KHR_mesh_quantization", "KHR_draco_mesh_compression"};
+    f.j["extensionsRequired"] = {"KHR_mesh_quantization", "KHR_draco_mesh_compression"};
+    auto m = load_model(f.write("draco"));
+    ASSERT_FALSE(m.ok());
+    EXPECT_EQ(m.error().where, "$.extensionsRequired[1]");
+    EXPECT_NE(m.error().message().find("KHR_draco_mesh_compression"), std::string::npos) << m.error().message();
+  }
+  struct Case {
+    std::vector<std::uint8_t> indices;
+    int count;
+    const char* where;
+  };
+  for (const Case& c : {Case{{1, 1}, 2, "$.accessors[0].sparse.indices"}, Case{{0, 3}, 2, "$.accessors[0].sparse.indices"},
+                        Case{{0, 1}, 4, "$.accessors[0].sparse.count"}}) {
+    GltfFile f;
+    int pos = f.accessor(f.view(std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0}), kFloat, 3, "VEC3");
+    int si = f.view(c.indices);
+    int sv = f.view(std::vector<float>{5, 5, 5, 6, 6, 6});
+    f.j["accessors"][pos]["sparse"] = {{"count", c.count},
+                                       {"indices", {{"bufferView", si}, {"componentType", kUByte}}},
+                                       {"values", {{"bufferView", sv}}}};
+    f.mesh({{"POSITION", pos}});
+    auto m = load_model(f.write("sparse"));
+    ASSERT_FALSE(m.ok());
+    EXPECT_EQ(m.error().where, c.where) << m.error().message();
+  }
+}
+
+}  // namespace
+}  // namespace bb::runtime
