@@ -824,6 +824,8 @@ Status decode_meshopt(tg::Model& m, const Ctx& c) {
       return c.err(w, "byte range [" + std::to_string(offset) + ", " + std::to_string(offset + length) +
                           ") lies outside its buffer of " + std::to_string(src.size()) + " bytes");
     if (count == 0 || count > (1u << 26)) return c.err(w + ".count", "must be from 1 to 2^26 (got " + std::to_string(count) + ")");
+    if (count * stride > (std::size_t{1} << 30))
+      return c.err(w, "decodes to " + std::to_string(count * stride) + " bytes, more than the 1 GiB this loader takes");
     std::vector<unsigned char> dst;
     int rc = -1;
     if (mode == "ATTRIBUTES") {
