@@ -35,6 +35,10 @@ layout(location = 5) in vec4 i_pos_yaw;
 layout(location = 6) in vec4 i_anim;  // scale, row f0, row f1, blend
 out vec3 v_nrm;
 out vec2 v_uv;
+#ifdef BB_COLORED
+layout(location = 15) in vec4 a_color;  // COLOR_0
+out vec4 v_color;
+#endif
 mat3x4 rows(uint j, int frame) {
   int base = (frame * u_palette_size + int(j)) * 3;
   return mat3x4(texelFetch(u_palette, base), texelFetch(u_palette, base + 1), texelFetch(u_palette, base + 2));
@@ -54,6 +58,9 @@ vec3 skin_world() {
   p *= i_anim.x;
   v_nrm = vec3(c * n.x + s * n.z, n.y, -s * n.x + c * n.z);
   v_uv = a_uv;
+#ifdef BB_COLORED
+  v_color = a_color;
+#endif
   return i_pos_yaw.xyz + vec3(c * p.x + s * p.z, p.y, -s * p.x + c * p.z);
 }
 )";
@@ -124,6 +131,9 @@ uniform float u_cutoff;  // < 0: opaque
 uniform vec3 u_light;    // unit, world, towards the light
 in vec3 v_nrm;
 in vec2 v_uv;
+#ifdef BB_COLORED
+in vec4 v_color;
+#endif
 layout(location = 0) out vec4 o_color;
 #ifdef BB_NORMALS
 // Relit snapshots (ImpostorConfig::relight): the albedo, and the normal in the snapshot camera's
@@ -143,6 +153,9 @@ void main() {
   vec4 c = u_color * texture(u_tex, v_uv);
 #else
   vec4 c = u_color;
+#endif
+#ifdef BB_COLORED
+  c *= v_color;
 #endif
 #ifdef BB_MASKED
   if (c.a < u_cutoff) discard;
@@ -645,11 +658,15 @@ struct Renderer::Impl {
   GLuint white = 0;
   GLuint palette_buffer = 0, palette_texture = 0;
   // kShadeFs's variants for the geometry and for the snapshots: [0] plain, [1] textured, [2] textured
-  // and masked (alpha cutoff), each with its uniforms' locations.
+  // and masked (alpha cutoff); [3, 6) the same with vertex colours (BB_COLORED); each with its
+  // uniforms' locations.
+  static constexpr std::size_t kShadeVariants = 6;
   struct ShadeProgram {
-    std::array<GLuint, 3> prog{};
-    std::array<GLint, 3> color{-1, -1, -1}, cutoff{-1, -1, -1}, viewproj{-1, -1, -1};
-    static std::size_t variant(const Material& m) { return m.alpha_mask ? 2 : m.texture >= 0 ? 1 : 0; }
+    std::array<GLuint, kShadeVariants> prog{};
+    std::array<GLint, kShadeVariants> color{}, cutoff{}, viewproj{};
+    static std::size_t variant(const Material& m) {
+      return (m.alpha_mask ? 2 : m.texture >= 0 ? 1 : 0) + (m.vertex_colors ? 3 : 0);
+    }
   } shade_geometry, shade_snapshot;
   GLuint prog_clear = 0;
   // Multisampled snapshots (ImpostorConfig::snapshot_samples > 1): a scratch page, resolved.
@@ -757,7 +774,8 @@ struct Renderer::Impl {
   void upload_light() {
     auto upload = [&](GLuint p) { glProgramUniform3fv(p, glGetUniformLocation(p, "u_light"), 1, glm::value_ptr(light)); };
     for (const ShadeProgram* sp : {&shade_geometry, &shade_snapshot})
-      for (GLuint p : sp->prog) upload(p);
+      for (GLuint p : sp->prog)
+        if (p) upload(p);  // 0: a vertex-colour variant the model does not use
     for (const BillboardProgram& b : bb) upload(b.prog);
   }
 
@@ -767,7 +785,7 @@ struct Renderer::Impl {
     glUseProgram(sp.prog[v]);
     glProgramUniform4fv(sp.prog[v], sp.color[v], 1, glm::value_ptr(m.base_color));
     glProgramUniform1f(sp.prog[v], sp.cutoff[v], m.alpha_cutoff);
-    if (v > 0) glBindTextureUnit(1, m.texture >= 0 ? textures[m.texture] : white);
+    if (v % 3 > 0) glBindTextureUnit(1, m.texture >= 0 ? textures[m.texture] : white);
   }
 
   // Clears the rects of snapshot_scratch[first, first + count) and draws those snapshots into
@@ -940,11 +958,13 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   d.config = config;
   while (glGetError() != GL_NO_ERROR) {
   }
-  // kShadeFs's three variants (Impl::ShadeProgram) of one program.
-  auto shade_program = [&model](Impl::ShadeProgram& sp, const std::string& vs, const std::string& fs, const char* what) -> Status {
+  // kShadeFs's variants (Impl::ShadeProgram) of one program; those with vertex colours only where the model
+  // has a material that uses them.
+  const bool colored = std::any_of(model.materials.begin(), model.materials.end(), [](const Material& m) { return m.vertex_colors; });
+  auto shade_program = [&model, colored](Impl::ShadeProgram& sp, const std::string& vs, const std::string& fs, const char* what) -> Status {
     const std::string variants[3] = {fs, with_define(fs, "BB_TEXTURED"), with_define(with_define(fs, "BB_TEXTURED"), "BB_MASKED")};
-    for (std::size_t v = 0; v < 3; ++v) {
-      auto p = program(vs, variants[v], what);
+    for (std::size_t v = 0; v < (colored ? Impl::kShadeVariants : 3); ++v) {
+      auto p = v < 3 ? program(vs, variants[v], what) : program(with_define(vs, "BB_COLORED"), with_define(variants[v - 3], "BB_COLORED"), what);
       if (!p) return p.error();
       sp.prog[v] = *p;
       sp.color[v] = glGetUniformLocation(*p, "u_color");
@@ -1063,7 +1083,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     glVertexArrayElementBuffer(vao, ibo);
     const GLuint offs[5] = {offsetof(Vertex, position), offsetof(Vertex, normal), offsetof(Vertex, uv),
                             offsetof(Vertex, joints), offsetof(Vertex, weights)};
-    for (GLuint a = 0; a < 5; ++a) {
+    for (GLuint a : {0u, 1u, 2u, 3u, 4u, 15u}) {
       glEnableVertexArrayAttrib(vao, a);
       glVertexArrayAttribBinding(vao, a, 0);
     }
@@ -1072,6 +1092,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     glVertexArrayAttribFormat(vao, 2, 2, GL_FLOAT, GL_FALSE, offs[2]);
     glVertexArrayAttribIFormat(vao, 3, 4, GL_UNSIGNED_SHORT, offs[3]);
     glVertexArrayAttribFormat(vao, 4, 4, GL_FLOAT, GL_FALSE, offs[4]);
+    glVertexArrayAttribFormat(vao, 15, 4, GL_UNSIGNED_BYTE, GL_TRUE, offsetof(Vertex, color));  // BB_COLORED's a_color
   };
   auto instance_attribs = [](GLuint vao, GLuint buffer, GLsizei stride, GLuint first_attr, GLuint count) {
     glVertexArrayVertexBuffer(vao, 1, buffer, 0, stride);
@@ -1265,8 +1286,9 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
     for (const auto& l : plan.geometry) d.instance_scratch.insert(d.instance_scratch.end(), l.begin(), l.end());
     if (!d.instance_scratch.empty()) {
       d.instances.upload(d.instance_scratch.data(), d.instance_scratch.size() * sizeof(InstanceGpu));
-      for (std::size_t v = 0; v < 3; ++v)
-        glProgramUniformMatrix4fv(d.shade_geometry.prog[v], d.shade_geometry.viewproj[v], 1, GL_FALSE, glm::value_ptr(viewproj));
+      for (std::size_t v = 0; v < Impl::kShadeVariants; ++v)
+        if (d.shade_geometry.prog[v])
+          glProgramUniformMatrix4fv(d.shade_geometry.prog[v], d.shade_geometry.viewproj[v], 1, GL_FALSE, glm::value_ptr(viewproj));
       GLuint base = 0;
       d.flushes_for_bound_target(
           [&] {

@@ -237,8 +237,9 @@ struct Builder {
   Model& out;
   bool quantized = false;  // KHR_mesh_quantization is used
   std::vector<int> remap;  // glTF node -> runtime node
-  std::map<int, int> skin_offset, rigid_slot, image_texture, material_index;
-  int default_material = -1;
+  std::map<int, int> skin_offset, rigid_slot, image_texture;
+  std::map<std::pair<int, bool>, int> material_index;  // (glTF material, vertex colours) -> runtime material
+  int default_material[2] = {-1, -1};
 
   UvSet uv_set(int mi) const {
     UvSet r;
@@ -370,17 +371,21 @@ struct Builder {
     return result;
   }
 
-  int material(int mi) {
+  // The runtime material for glTF material `mi` on a primitive with (`colored`) or without vertex colours.
+  int material(int mi, bool colored) {
     if (mi < 0 || mi >= static_cast<int>(c.m.materials.size())) {
-      if (default_material < 0) {
-        default_material = static_cast<int>(out.materials.size());
-        out.materials.push_back(Material{glm::vec4(0.8f, 0.8f, 0.8f, 1.0f)});
+      if (default_material[colored] < 0) {
+        default_material[colored] = static_cast<int>(out.materials.size());
+        Material mat{colored ? glm::vec4(1.0f) : glm::vec4(0.8f, 0.8f, 0.8f, 1.0f)};  // glTF's default is white
+        mat.vertex_colors = colored;
+        out.materials.push_back(mat);
       }
-      return default_material;
+      return default_material[colored];
     }
-    if (auto it = material_index.find(mi); it != material_index.end()) return it->second;
+    if (auto it = material_index.find({mi, colored}); it != material_index.end()) return it->second;
     const tg::Material& gm = c.m.materials[mi];
     Material mat;
+    mat.vertex_colors = colored;
     const auto& f = gm.pbrMetallicRoughness.baseColorFactor;
     if (f.size() == 4 && finite_all(f)) mat.base_color = glm::vec4(f[0], f[1], f[2], f[3]);
     int ti = gm.pbrMetallicRoughness.baseColorTexture.index;
@@ -391,7 +396,7 @@ struct Builder {
     }
     int r = static_cast<int>(out.materials.size());
     out.materials.push_back(mat);
-    material_index[mi] = r;
+    material_index[{mi, colored}] = r;
     return r;
   }
 
@@ -450,6 +455,16 @@ struct Builder {
           uv[v] = t.x, uv[v + 1] = t.y;
         }
       }
+      std::vector<double> col;  // COLOR_0 as RGBA
+      if (int a = attr("COLOR_0"); a >= 0) {
+        const bool rgb = a < static_cast<int>(c.m.accessors.size()) && c.m.accessors[a].type == TINYGLTF_TYPE_VEC3;
+        auto r = read_accessor(c, a, rgb ? TINYGLTF_TYPE_VEC3 : TINYGLTF_TYPE_VEC4, {kF, kUB, kUS}, true, pw + ".attributes.COLOR_0");
+        if (!r) return r.error();
+        if (auto s = same_count(*r, rgb ? 3 : 4, "COLOR_0"); !s) return s;
+        col.resize(nv * 4, 1.0);
+        for (std::size_t v = 0; v < nv; ++v)
+          for (int k = 0; k < (rgb ? 3 : 4); ++k) col[4 * v + k] = (*r)[v * (rgb ? 3 : 4) + k];
+      }
       int sets = 0;  // JOINTS_n / WEIGHTS_n pairs read
       double weight_tolerance = 1e-5;
       if (skinned) {
@@ -502,6 +517,7 @@ struct Builder {
         };
         corners(*pos, 3, 1);
         if (!uv.empty()) corners(uv, 2, 1);
+        if (!col.empty()) corners(col, 4, 1);
         if (skinned) corners(jnt, 4, sets), corners(wgt, 4, sets);
         nv = ind.size();
         for (std::size_t k = 0; k < ind.size(); ++k) ind[k] = static_cast<std::uint32_t>(k);
@@ -512,6 +528,9 @@ struct Builder {
         vx.position = glm::vec3(pos->at(3 * v), pos->at(3 * v + 1), pos->at(3 * v + 2));
         if (!nrm.empty()) vx.normal = glm::vec3(nrm[3 * v], nrm[3 * v + 1], nrm[3 * v + 2]);
         if (!uv.empty()) vx.uv = glm::vec2(uv[2 * v], uv[2 * v + 1]);
+        if (!col.empty())
+          for (int k = 0; k < 4; ++k)
+            vx.color[k] = static_cast<std::uint8_t>(std::lround(std::clamp(col[4 * v + k], 0.0, 1.0) * 255.0));
         if (skinned) {
           // Up to eight influences (JOINTS_0 and JOINTS_1); the four heaviest are kept.
           std::pair<double, int> inf[8];
@@ -580,7 +599,7 @@ struct Builder {
       Primitive prim;
       prim.first_index = static_cast<std::uint32_t>(lod.indices.size());
       prim.index_count = static_cast<std::uint32_t>(ind.size());
-      prim.material = material(p.material);
+      prim.material = material(p.material, !col.empty());
       for (auto i : ind) lod.indices.push_back(base + i);
       lod.primitives.push_back(prim);
     }

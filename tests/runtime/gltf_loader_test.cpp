@@ -165,6 +165,38 @@ TEST(GltfLoader, EightInfluencesKeepTheFourHeaviest) {
   EXPECT_EQ(r.skin_joints, 6);
 }
 
+// COLOR_0, as normalized bytes (RGB) or floats (RGBA): kept per vertex as 8-bit RGBA, and the primitive gets a
+// material that multiplies by it; a primitive without colours keeps the plain material.
+TEST(GltfLoader, VertexColours) {
+  for (bool rgb_bytes : {true, false}) {
+    GltfFile f;
+    int pos = f.accessor(f.view(std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0}), kFloat, 3, "VEC3");
+    int col = rgb_bytes ? f.accessor(f.view(std::vector<std::uint8_t>{255, 0, 0, 0, 0, 128, 0, 0, 0, 0, 255, 0}, 4), kUByte,
+                                     3, "VEC3", true)
+                        : f.accessor(f.view(std::vector<float>{1, 0, 0, 0.5f, 0, 0.5f, 0, 1, 0, 0, 1, 0.25f}), kFloat, 3, "VEC4");
+    f.mesh({{"POSITION", pos}, {"COLOR_0", col}});
+    json plain = {{"attributes", {{"POSITION", pos}}}};
+    f.j["meshes"][0]["primitives"].push_back(plain);
+    auto m = load_model(f.write("colours"));
+    ASSERT_TRUE(m.ok()) << m.error().message();
+    const MeshLod& lod = m->lods[0];
+    ASSERT_EQ(lod.vertices.size(), 6u);
+    ASSERT_EQ(lod.primitives.size(), 2u);
+    if (rgb_bytes) {
+      EXPECT_EQ(lod.vertices[0].color, glm::u8vec4(255, 0, 0, 255));
+      EXPECT_EQ(lod.vertices[1].color, glm::u8vec4(0, 128, 0, 255));
+      EXPECT_EQ(lod.vertices[2].color, glm::u8vec4(0, 0, 255, 255));
+    } else {
+      EXPECT_EQ(lod.vertices[0].color, glm::u8vec4(255, 0, 0, 128));
+      EXPECT_EQ(lod.vertices[2].color, glm::u8vec4(0, 0, 255, 64));
+    }
+    EXPECT_EQ(lod.vertices[3].color, glm::u8vec4(255));  // the second primitive has none
+    EXPECT_TRUE(m->materials[lod.primitives[0].material].vertex_colors);
+    EXPECT_FALSE(m->materials[lod.primitives[1].material].vertex_colors);
+    EXPECT_EQ(m->materials[lod.primitives[0].material].base_color, glm::vec4(1.0f));  // glTF's default, white
+  }
+}
+
 // glTF: a mesh without normals is drawn with flat ones, indexed or not.
 TEST(GltfLoader, IndexedMeshWithoutNormalsIsFlatShaded) {
   GltfFile f;

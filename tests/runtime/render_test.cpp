@@ -937,6 +937,55 @@ TEST(CrowdRender, DepthCorrectedCardsFollowTheParallax) {
 // textured (the texture's colour, its alpha ignored) and masked (texels below the cutoff
 // discarded), as geometry and as impostors. The texture is 4x1: two blue texels of alpha 0, then
 // two red opaque ones; u runs from 0.125 to 0.875 across the square, so the mask keeps half of it.
+// Vertex colours (COLOR_0) multiply the base colour in both paths: an orange square (255, 128, 0) lit
+// as the plain white one is, channel by channel, in the geometry frame and in the impostor's.
+TEST(CrowdRender, VertexColoursMultiplyTheBaseColour) {
+  REQUIRE_GL();
+  std::map<std::string, std::vector<std::uint8_t>> frames;
+  for (bool colored : {false, true}) {
+    Model m = square_model();
+    if (colored) {
+      for (Vertex& v : m.lods[0].vertices) v.color = {255, 128, 0, 255};
+      m.materials[0].vertex_colors = true;
+    }
+    Crowd crowd(m);
+    crowd.add(Character{});
+    ImpostorConfig cfg;
+    cfg.cache.posture_threshold = 0.0f;
+    cfg.cache.view_threshold_deg = 0.0f;
+    FramePlanner planner(m, cfg);
+    auto renderer = Renderer::create(m, cfg);
+    ASSERT_TRUE(renderer.ok()) << renderer.error().message();
+    auto target = OffscreenTarget::create(128, 128, 4);
+    ASSERT_TRUE(target.ok());
+    SceneCamera cam;
+    cam.width = cam.height = 128;
+    cam.target = m.ta;
+    cam.eye = m.ta + glm::vec3(0, 0, cam.pixels_per_metre(1.0f) / 60.0f);
+    for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) {
+      (*target)->bind(true);
+      (*renderer)->draw(planner.plan(crowd, cam, 0.0f, mode));
+      frames[std::string(colored ? "orange" : "white") + (mode == RenderMode::kGeometry ? " geometry" : " impostor")] =
+          (*target)->read_rgba();
+    }
+  }
+  for (const char* path : {" geometry", " impostor"}) {
+    const auto& white = frames[std::string("white") + path];
+    const auto& orange = frames[std::string("orange") + path];
+    int opaque = 0, matched = 0;
+    for (std::size_t i = 0; i < white.size(); i += 4) {
+      if (white[i + 3] < 255 || orange[i + 3] < 255) continue;
+      ++opaque;
+      const int lit = white[i];  // the plain square's grey: its lighting
+      matched += orange[i] == lit && std::abs(orange[i + 1] - lit * 128 / 255) <= 1 && orange[i + 2] == 0;
+    }
+    std::printf("vertex colours%s: %d opaque pixels, %d of them the white square's lighting times (255, 128, 0)\n",
+                path, opaque, matched);
+    EXPECT_GT(opaque, 2000) << path;
+    EXPECT_EQ(matched, opaque) << path;
+  }
+}
+
 TEST(CrowdRender, PlainTexturedAndMaskedMaterials) {
   REQUIRE_GL();
   struct Kind {

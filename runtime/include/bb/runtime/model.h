@@ -47,6 +47,7 @@ struct Vertex {
   glm::vec2 uv{0.0f};
   glm::u16vec4 joints{0};    // indices into Model::palette
   glm::vec4 weights{1.0f, 0.0f, 0.0f, 0.0f};  // sum to 1
+  glm::u8vec4 color{255};    // COLOR_0 (linear, RGBA): multiplies the base colour where the material says so
 };
 
 struct Primitive {
@@ -70,6 +71,7 @@ struct Material {
   int texture = -1;            // into Model::textures, or -1
   float alpha_cutoff = 0.5f;   // used when alpha_mask
   bool alpha_mask = false;
+  bool vertex_colors = false;  // its primitives' vertices carry colours (Vertex::color)
 };
 
 struct Texture {
