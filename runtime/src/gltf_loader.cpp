@@ -546,7 +546,7 @@ struct Builder {
             if (j >= joint_count) wk = 0.0, j = 0;
             inf[k] = {wk, static_cast<int>(j)};
           }
-          double stored = 0.0, total = 0.0;  // the weights as stored; the kept ones' sum
+          double stored = 0.0, total = 0.0;  // the sums of the weights as stored and of the non-negative ones
           int nonzero = 0;
           for (int k = 0; k < n_inf; ++k) {
             stored += wgt[static_cast<std::size_t>(k / 4) * nv * 4 + 4 * v + k % 4];
