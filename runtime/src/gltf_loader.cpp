@@ -535,6 +535,8 @@ struct Builder {
           // Up to eight influences (JOINTS_0 and JOINTS_1); the four heaviest are kept.
           std::pair<double, int> inf[8];
           const int n_inf = 4 * sets;
+          double stored = 0.0, total = 0.0;  // the sums of the weights as stored and of the kept-valid ones
+          int nonzero = 0;
           for (int k = 0; k < n_inf; ++k) {
             const std::size_t at = static_cast<std::size_t>(k / 4) * nv * 4 + 4 * v + k % 4;
             double j = jnt[at];
@@ -545,13 +547,9 @@ struct Builder {
                                " of a skin with " + std::to_string(joint_count));
             if (j >= joint_count) wk = 0.0, j = 0;
             inf[k] = {wk, static_cast<int>(j)};
-          }
-          double stored = 0.0, total = 0.0;  // the sums of the weights as stored and of the non-negative ones
-          int nonzero = 0;
-          for (int k = 0; k < n_inf; ++k) {
-            stored += wgt[static_cast<std::size_t>(k / 4) * nv * 4 + 4 * v + k % 4];
-            total += inf[k].first;
-            nonzero += inf[k].first > 0.0;
+            stored += wgt[at];
+            total += wk;
+            nonzero += wk > 0.0;
           }
           if (n_inf > 4)  // stable: equal weights keep their order
             std::stable_sort(inf, inf + n_inf, [](const auto& a, const auto& b) { return a.first > b.first; });

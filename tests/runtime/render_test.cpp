@@ -937,41 +937,48 @@ TEST(CrowdRender, DepthCorrectedCardsFollowTheParallax) {
 // textured (the texture's colour, its alpha ignored) and masked (texels below the cutoff
 // discarded), as geometry and as impostors. The texture is 4x1: two blue texels of alpha 0, then
 // two red opaque ones; u runs from 0.125 to 0.875 across the square, so the mask keeps half of it.
+// square_model drawn fresh (both thresholds 0) as geometry and as an impostor, 128 x 128 at 4x MSAA, the
+// square about 60 pixels wide: the RGBA pixels of each path.
+std::map<RenderMode, std::vector<std::uint8_t>> square_frames(const Model& m) {
+  std::map<RenderMode, std::vector<std::uint8_t>> frames;
+  Crowd crowd(m);
+  crowd.add(Character{});
+  ImpostorConfig cfg;
+  cfg.cache.posture_threshold = 0.0f;
+  cfg.cache.view_threshold_deg = 0.0f;
+  FramePlanner planner(m, cfg);
+  auto renderer = Renderer::create(m, cfg);
+  EXPECT_TRUE(renderer.ok()) << renderer.error().message();
+  auto target = OffscreenTarget::create(128, 128, 4);
+  EXPECT_TRUE(target.ok());
+  if (!renderer.ok() || !target.ok()) return frames;
+  SceneCamera cam;
+  cam.width = cam.height = 128;
+  cam.target = m.ta;
+  cam.eye = m.ta + glm::vec3(0, 0, cam.pixels_per_metre(1.0f) / 60.0f);
+  for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) {
+    (*target)->bind(true);
+    (*renderer)->draw(planner.plan(crowd, cam, 0.0f, mode));
+    frames[mode] = (*target)->read_rgba();
+  }
+  return frames;
+}
+
 // Vertex colours (COLOR_0) multiply the base colour in both paths: an orange square (255, 128, 0) lit
 // as the plain white one is, channel by channel, in the geometry frame and in the impostor's.
 TEST(CrowdRender, VertexColoursMultiplyTheBaseColour) {
   REQUIRE_GL();
-  std::map<std::string, std::vector<std::uint8_t>> frames;
-  for (bool colored : {false, true}) {
-    Model m = square_model();
-    if (colored) {
-      for (Vertex& v : m.lods[0].vertices) v.color = {255, 128, 0, 255};
-      m.materials[0].vertex_colors = true;
-    }
-    Crowd crowd(m);
-    crowd.add(Character{});
-    ImpostorConfig cfg;
-    cfg.cache.posture_threshold = 0.0f;
-    cfg.cache.view_threshold_deg = 0.0f;
-    FramePlanner planner(m, cfg);
-    auto renderer = Renderer::create(m, cfg);
-    ASSERT_TRUE(renderer.ok()) << renderer.error().message();
-    auto target = OffscreenTarget::create(128, 128, 4);
-    ASSERT_TRUE(target.ok());
-    SceneCamera cam;
-    cam.width = cam.height = 128;
-    cam.target = m.ta;
-    cam.eye = m.ta + glm::vec3(0, 0, cam.pixels_per_metre(1.0f) / 60.0f);
-    for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) {
-      (*target)->bind(true);
-      (*renderer)->draw(planner.plan(crowd, cam, 0.0f, mode));
-      frames[std::string(colored ? "orange" : "white") + (mode == RenderMode::kGeometry ? " geometry" : " impostor")] =
-          (*target)->read_rgba();
-    }
-  }
-  for (const char* path : {" geometry", " impostor"}) {
-    const auto& white = frames[std::string("white") + path];
-    const auto& orange = frames[std::string("orange") + path];
+  const Model plain = square_model();
+  Model colored = square_model();
+  for (Vertex& v : colored.lods[0].vertices) v.color = {255, 128, 0, 255};
+  colored.materials[0].vertex_colors = true;
+  auto white_frames = square_frames(plain), orange_frames = square_frames(colored);
+  ASSERT_EQ(white_frames.size(), 2u);
+  ASSERT_EQ(orange_frames.size(), 2u);
+  for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) {
+    const char* path = mode == RenderMode::kGeometry ? " geometry" : " impostor";
+    const auto& white = white_frames[mode];
+    const auto& orange = orange_frames[mode];
     int opaque = 0, matched = 0;
     for (std::size_t i = 0; i < white.size(); i += 4) {
       if (white[i + 3] < 255 || orange[i + 3] < 255) continue;
@@ -1014,24 +1021,9 @@ TEST(CrowdRender, PlainTexturedAndMaskedMaterials) {
     m.materials[0].texture = k.texture;
     m.materials[0].alpha_mask = k.mask;
     m.materials[0].alpha_cutoff = 0.5f;
-    Crowd crowd(m);
-    crowd.add(Character{});
-    ImpostorConfig cfg;
-    cfg.cache.posture_threshold = 0.0f;
-    cfg.cache.view_threshold_deg = 0.0f;
-    FramePlanner planner(m, cfg);
-    auto renderer = Renderer::create(m, cfg);
-    ASSERT_TRUE(renderer.ok()) << renderer.error().message();
-    auto target = OffscreenTarget::create(128, 128, 4);
-    ASSERT_TRUE(target.ok());
-    SceneCamera cam;
-    cam.width = cam.height = 128;
-    cam.target = m.ta;
-    cam.eye = m.ta + glm::vec3(0, 0, cam.pixels_per_metre(1.0f) / 60.0f);
-    for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) {
-      (*target)->bind(true);
-      (*renderer)->draw(planner.plan(crowd, cam, 0.0f, mode));
-      const auto px = (*target)->read_rgba();
+    auto frames = square_frames(m);
+    ASSERT_EQ(frames.size(), 2u);
+    for (const auto& [mode, px] : frames) {
       Counts n;
       for (std::size_t i = 0; i < px.size(); i += 4) {
         if (px[i + 3] < 255) continue;  // opaque pixels only: the edges blend with nothing
