@@ -115,6 +115,9 @@ int inspect_gltf(const std::string& path, bool as_json) {
   j["skin"] = {{"max_influences", skin.max_influences}, {"weights_normalized", skin.weights_normalized},
                {"worst_weight_sum_error", skin.worst_weight_sum_error}, {"skinned_vertices", skin.skinned_vertices},
                {"vertices_over_four", skin.vertices_over_four}, {"worst_dropped_weight", skin.worst_dropped_weight}};
+  const runtime::MorphReport& morph = m.morph_report;
+  j["morph"] = {{"primitives", morph.primitives}, {"most_targets", morph.most_targets},
+                {"weighted_targets", morph.weighted_targets}, {"weight_channels", morph.weight_channels}};
   j["materials"] = m.materials.size();
   j["textures"] = m.textures.size();
   if (as_json) {
@@ -135,6 +138,12 @@ int inspect_gltf(const std::string& path, bool as_json) {
   if (skin.vertices_over_four > 0)
     std::printf("skin: %zu vertices have more than 4 influences; the runtime keeps the 4 heaviest (at most %.1f %% of a "
                 "vertex's weight dropped)\n", skin.vertices_over_four, 100.0 * skin.worst_dropped_weight);
+  if (morph.primitives > 0)
+    std::printf("morph targets: %zu primitives with up to %d; drawn at their default weights (%zu targets weighted)%s\n",
+                morph.primitives, morph.most_targets, morph.weighted_targets,
+                morph.weight_channels > 0 ? (", " + std::to_string(morph.weight_channels) +
+                                             " animated weight channels not played").c_str()
+                                          : "");
   return 0;
 }
 

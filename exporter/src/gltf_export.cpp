@@ -182,7 +182,7 @@ Result<std::vector<uint8_t>> encode(const ExportInput& in, int only_level) {
     if (m.samplers.empty()) {
       tinygltf::Sampler s;
       s.magFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
-      s.minFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
+      s.minFilter = TINYGLTF_TEXTURE_FILTER_LINEAR_MIPMAP_LINEAR;  // the proxies are seen small: mipmaps
       m.samplers.push_back(s);
     }
     tinygltf::Texture tex;

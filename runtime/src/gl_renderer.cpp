@@ -655,6 +655,7 @@ struct Renderer::Impl {
   int parts = 1;  // body parts of the model (1: no part index buffers)
   std::vector<Lod> lods;
   std::vector<GLuint> textures;  // per model texture
+  std::vector<GLuint> samplers;  // per material: its TextureSampler as a GL sampler object
   GLuint white = 0;
   GLuint palette_buffer = 0, palette_texture = 0;
   // kShadeFs's variants for the geometry and for the snapshots: [0] plain, [1] textured, [2] textured
@@ -780,12 +781,16 @@ struct Renderer::Impl {
   }
 
   // Uses the material's variant of `sp` and gives it the material.
-  void set_material(const ShadeProgram& sp, const Material& m) {
+  void set_material(const ShadeProgram& sp, int material) {
+    const Material& m = model->materials[material];
     const std::size_t v = ShadeProgram::variant(m);
     glUseProgram(sp.prog[v]);
     glProgramUniform4fv(sp.prog[v], sp.color[v], 1, glm::value_ptr(m.base_color));
     glProgramUniform1f(sp.prog[v], sp.cutoff[v], m.alpha_cutoff);
-    if (v % 3 > 0) glBindTextureUnit(1, m.texture >= 0 ? textures[m.texture] : white);
+    if (v % 3 > 0) {
+      glBindTextureUnit(1, m.texture >= 0 ? textures[m.texture] : white);
+      glBindSampler(1, samplers[material]);
+    }
   }
 
   // Clears the rects of snapshot_scratch[first, first + count) and draws those snapshots into
@@ -818,7 +823,7 @@ struct Renderer::Impl {
     for (std::size_t k = 0; k < ml.primitives.size(); ++k) {
       const PartIndices::Range& r = pi.ranges[k * parts + part];
       if (r.count == 0) continue;
-      set_material(shade_snapshot, model->materials[ml.primitives[k].material]);
+      set_material(shade_snapshot, ml.primitives[k].material);
       glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(r.count), GL_UNSIGNED_INT,
                                           reinterpret_cast<const void*>(static_cast<std::uintptr_t>(r.first) * 4), count,
                                           base_instance);
@@ -841,7 +846,7 @@ struct Renderer::Impl {
         n = std::min<GLsizei>(n, static_cast<GLsizei>(std::max<std::size_t>(1, (left + per - 1) / per)));
       }
       for (const Primitive& p : ml.primitives) {
-        set_material(sp, model->materials[p.material]);
+        set_material(sp, p.material);
         glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(p.index_count), GL_UNSIGNED_INT,
                                             reinterpret_cast<const void*>(static_cast<std::uintptr_t>(p.first_index) * 4),
                                             n, base_instance + static_cast<GLuint>(done));
@@ -1070,6 +1075,23 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   const std::uint8_t white[4] = {255, 255, 255, 255};
   d.white = make_texture(1, 1, white);
   for (const Texture& t : model.textures) d.textures.push_back(make_texture(t.width, t.height, t.rgba.data()));
+  // One sampler object per material (the glTF sampler its texture names), bound with its texture.
+  for (const Material& m : model.materials) {
+    const TextureSampler& ts = m.sampler;
+    GLuint s;
+    glCreateSamplers(1, &s);
+    auto wrap = [](Wrap w) {
+      return w == Wrap::kClampToEdge ? GL_CLAMP_TO_EDGE : w == Wrap::kMirroredRepeat ? GL_MIRRORED_REPEAT : GL_REPEAT;
+    };
+    const GLenum min = !ts.mipmaps     ? (ts.min_nearest ? GL_NEAREST : GL_LINEAR)
+                       : ts.mip_nearest ? (ts.min_nearest ? GL_NEAREST_MIPMAP_NEAREST : GL_LINEAR_MIPMAP_NEAREST)
+                                        : (ts.min_nearest ? GL_NEAREST_MIPMAP_LINEAR : GL_LINEAR_MIPMAP_LINEAR);
+    glSamplerParameteri(s, GL_TEXTURE_WRAP_S, static_cast<GLint>(wrap(ts.wrap_s)));
+    glSamplerParameteri(s, GL_TEXTURE_WRAP_T, static_cast<GLint>(wrap(ts.wrap_t)));
+    glSamplerParameteri(s, GL_TEXTURE_MAG_FILTER, ts.mag_nearest ? GL_NEAREST : GL_LINEAR);
+    glSamplerParameteri(s, GL_TEXTURE_MIN_FILTER, static_cast<GLint>(min));
+    d.samplers.push_back(s);
+  }
 
   glCreateBuffers(1, &d.instances.id);
   glCreateBuffers(1, &d.snapshots.id);
@@ -1218,6 +1240,7 @@ Renderer::~Renderer() {
   }
   glDeleteVertexArrays(1, &d.vao_billboard);
   if (!d.textures.empty()) glDeleteTextures(static_cast<GLsizei>(d.textures.size()), d.textures.data());
+  if (!d.samplers.empty()) glDeleteSamplers(static_cast<GLsizei>(d.samplers.size()), d.samplers.data());
   glDeleteTextures(1, &d.white);
   glDeleteTextures(1, &d.palette_texture);
   glDeleteBuffers(1, &d.palette_buffer);
@@ -1406,6 +1429,7 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
   d.stamp(ts, 4);
   glBindVertexArray(0);
   glUseProgram(0);
+  glBindSampler(1, 0);  // the material's sampler object must not outlive the draw
 }
 
 StageTimes Renderer::stage_times() const {

@@ -240,6 +240,48 @@ struct Builder {
   std::map<int, int> skin_offset, rigid_slot, image_texture;
   std::map<std::pair<int, bool>, int> material_index;  // (glTF material, vertex colours) -> runtime material
   int default_material[2] = {-1, -1};
+  std::vector<TextureSampler> sampler_table;  // per glTF sampler
+
+  // Reads every glTF sampler and checks every texture's reference to one.
+  Status samplers() {
+    for (std::size_t i = 0; i < c.m.samplers.size(); ++i) {
+      const tg::Sampler& gs = c.m.samplers[i];
+      const std::string sw = idx("samplers", static_cast<int>(i));
+      TextureSampler ts;
+      auto wrap = [&](int v, const char* key, Wrap& w) -> Status {
+        switch (v) {
+          case 10497: w = Wrap::kRepeat; return Ok{};
+          case 33071: w = Wrap::kClampToEdge; return Ok{};
+          case 33648: w = Wrap::kMirroredRepeat; return Ok{};
+          default:
+            return c.err(sw + "." + key, std::to_string(v) + " is not a wrap mode (10497 REPEAT, 33071 CLAMP_TO_EDGE, 33648 MIRRORED_REPEAT)");
+        }
+      };
+      if (auto s = wrap(gs.wrapS, "wrapS", ts.wrap_s); !s) return s;
+      if (auto s = wrap(gs.wrapT, "wrapT", ts.wrap_t); !s) return s;
+      if (gs.magFilter != -1 && gs.magFilter != 9728 && gs.magFilter != 9729)
+        return c.err(sw + ".magFilter", std::to_string(gs.magFilter) + " is not a magnification filter (9728 NEAREST, 9729 LINEAR)");
+      ts.mag_nearest = gs.magFilter == 9728;
+      switch (gs.minFilter) {
+        case -1: break;  // not given: trilinear
+        case 9728: ts.min_nearest = true, ts.mipmaps = false; break;                  // NEAREST
+        case 9729: ts.mipmaps = false; break;                                          // LINEAR
+        case 9984: ts.min_nearest = true, ts.mip_nearest = true; break;                // NEAREST_MIPMAP_NEAREST
+        case 9985: ts.mip_nearest = true; break;                                       // LINEAR_MIPMAP_NEAREST
+        case 9986: ts.min_nearest = true; break;                                       // NEAREST_MIPMAP_LINEAR
+        case 9987: break;                                                              // LINEAR_MIPMAP_LINEAR
+        default:
+          return c.err(sw + ".minFilter", std::to_string(gs.minFilter) + " is not a minification filter (9728, 9729, 9984 to 9987)");
+      }
+      sampler_table.push_back(ts);
+    }
+    for (std::size_t i = 0; i < c.m.textures.size(); ++i) {
+      const int s = c.m.textures[i].sampler;
+      if (s < -1 || s >= static_cast<int>(sampler_table.size()))
+        return c.err(idx("textures", static_cast<int>(i)) + ".sampler", "sampler " + std::to_string(s) + " does not exist");
+    }
+    return Ok{};
+  }
 
   UvSet uv_set(int mi) const {
     UvSet r;
@@ -389,7 +431,10 @@ struct Builder {
     const auto& f = gm.pbrMetallicRoughness.baseColorFactor;
     if (f.size() == 4 && finite_all(f)) mat.base_color = glm::vec4(f[0], f[1], f[2], f[3]);
     int ti = gm.pbrMetallicRoughness.baseColorTexture.index;
-    if (ti >= 0 && ti < static_cast<int>(c.m.textures.size())) mat.texture = texture_for_image(c.m.textures[ti].source);
+    if (ti >= 0 && ti < static_cast<int>(c.m.textures.size())) {
+      mat.texture = texture_for_image(c.m.textures[ti].source);
+      if (const int si = c.m.textures[ti].sampler; si >= 0) mat.sampler = sampler_table[si];
+    }
     if (gm.alphaMode == "MASK" || gm.alphaMode == "BLEND") {
       mat.alpha_mask = true;
       mat.alpha_cutoff = gm.alphaMode == "MASK" ? static_cast<float>(gm.alphaCutoff) : 0.5f;
@@ -398,6 +443,47 @@ struct Builder {
     out.materials.push_back(mat);
     material_index[{mi, colored}] = r;
     return r;
+  }
+
+  // Morph targets: adds each target's POSITION (and NORMAL, where the primitive has normals) displacements
+  // times its default weight (node `gn`'s weights, else mesh `mi`'s; none: all 0) to `pos` and `nrm`.
+  Status bake_morph_targets(const tg::Primitive& p, const std::string& pw, int gn, int mi, std::size_t nv,
+                            std::vector<double>& pos, std::vector<double>& nrm) {
+    const tg::Node& node = c.m.nodes[gn];
+    const tg::Mesh& mesh = c.m.meshes[mi];
+    const bool own = !node.weights.empty();
+    const std::vector<double>& w = own ? node.weights : mesh.weights;
+    if (!w.empty() && w.size() != p.targets.size())
+      return c.err(own ? idx("nodes", gn) + ".weights" : idx("meshes", mi) + ".weights",
+                   "has " + std::to_string(w.size()) + " weights, " + pw + " has " + std::to_string(p.targets.size()) + " targets");
+    MorphReport& rep = out.morph_report;
+    ++rep.primitives;
+    rep.most_targets = std::max(rep.most_targets, static_cast<int>(p.targets.size()));
+    bool moved_normals = false;
+    for (std::size_t t = 0; t < p.targets.size(); ++t) {
+      const double wt = t < w.size() ? w[t] : 0.0;
+      const std::string tw = pw + ".targets[" + std::to_string(t) + "]";
+      if (!std::isfinite(wt)) return c.err(own ? idx("nodes", gn) + ".weights" : idx("meshes", mi) + ".weights", "a weight is not finite");
+      for (const auto& [name, ai] : p.targets[t]) {
+        const bool is_pos = name == "POSITION", is_nrm = name == "NORMAL";
+        if (wt == 0.0 || !(is_pos || (is_nrm && !nrm.empty()))) continue;  // TANGENT, TEXCOORD_n, COLOR_n: not drawn
+        auto d = read_accessor(c, ai, TINYGLTF_TYPE_VEC3, {kF, kB, kS}, false, tw + "." + name);
+        if (!d) return d.error();
+        if (d->size() / 3 != nv)
+          return c.err(tw + "." + name, "has " + std::to_string(d->size() / 3) + " elements, POSITION has " + std::to_string(nv));
+        std::vector<double>& dst = is_pos ? pos : nrm;
+        for (std::size_t k = 0; k < dst.size(); ++k) dst[k] += wt * (*d)[k];
+        moved_normals |= is_nrm;
+      }
+      rep.weighted_targets += wt != 0.0;
+    }
+    if (moved_normals)
+      for (std::size_t v = 0; v < nv; ++v) {
+        const double l = std::sqrt(nrm[3 * v] * nrm[3 * v] + nrm[3 * v + 1] * nrm[3 * v + 1] + nrm[3 * v + 2] * nrm[3 * v + 2]);
+        if (l > 0.0)
+          for (int k = 0; k < 3; ++k) nrm[3 * v + k] /= l;
+      }
+    return Ok{};
   }
 
   // Appends mesh `mi` drawn by glTF node `gn` to `lod`.
@@ -454,6 +540,9 @@ struct Builder {
           glm::vec2 t = uvset.transform * glm::vec3(uv[v], uv[v + 1], 1.0);
           uv[v] = t.x, uv[v + 1] = t.y;
         }
+      }
+      if (!p.targets.empty()) {
+        if (auto s = bake_morph_targets(p, pw, gn, mi, nv, *pos, nrm); !s) return s;
       }
       std::vector<double> col;  // COLOR_0 as RGBA
       if (int a = attr("COLOR_0"); a >= 0) {
@@ -689,7 +778,10 @@ struct Builder {
         const tg::AnimationChannel& ch = a.channels[ci];
         std::string cw = aw + ".channels[" + std::to_string(ci) + "]";
         Channel out_ch;
-        if (ch.target_path == "weights") continue;  // morph targets: not used by this runtime
+        if (ch.target_path == "weights") {  // morph weights: not played (the defaults are baked in)
+          ++out.morph_report.weight_channels;
+          continue;
+        }
         if (ch.target_path == "translation") out_ch.path = ChannelPath::kTranslation;
         else if (ch.target_path == "rotation") out_ch.path = ChannelPath::kRotation;
         else if (ch.target_path == "scale") out_ch.path = ChannelPath::kScale;
@@ -927,6 +1019,7 @@ Result<Model> load_model(const std::string& path, const LoadOptions& options) {
     Builder b{c, model};
     b.quantized = std::find(gm.extensionsUsed.begin(), gm.extensionsUsed.end(), "KHR_mesh_quantization") != gm.extensionsUsed.end();
     if (auto s = b.hierarchy(); !s) return s.error();
+    if (auto s = b.samplers(); !s) return s.error();
     if (auto s = b.meshes(); !s) return s.error();
     if (auto s = b.animations(); !s) return s.error();
   } catch (const std::exception& e) {

@@ -66,8 +66,10 @@ TEST(FlowCli, WorstCaseRefreshesEveryImpostorEveryFrame) {
   EXPECT_DOUBLE_EQ(j["refresh_fraction"].get<double>(), 1.0);
   // Every impostor fresh, the runtime's quality setting (2 texels per pixel, sorted blending): the
   // frames agree closely (measured ~30 dB on llvmpipe at 1280x1024; ~19 dB before the snapshots
-  // used the geometry's LOD, 2 texels per pixel and antialiased edges).
-  EXPECT_GT(j["psnr_db"].get<double>(), 22.0);
+  // used the geometry's LOD, 2 texels per pixel and antialiased edges). Here 21.85 dB: CesiumMan's
+  // sampler asks for the nearest texel within a mip level (NEAREST_MIPMAP_LINEAR), which both paths
+  // honour; with trilinear filtering, as before samplers were read, 22.42 dB.
+  EXPECT_GT(j["psnr_db"].get<double>(), 21.0);
   // The test bed's default (1 texel per pixel, blending) is the faster setting: lower but still
   // antialiased agreement on these tiny characters (18.7 dB measured; 16.8 with alpha to coverage).
   Out fast = run("flow --model " + model + " --frames 4 --size 320x256 --posture 0 --view 0 --json -o " + d.string());

@@ -212,6 +212,134 @@ TEST(GltfLoader, IndexedMeshWithoutNormalsIsFlatShaded) {
   expect_vec(v[4].position, {0, 0, 1});
 }
 
+// glTF samplers: wrap modes and filters as the file gives them, glTF's defaults (repeat; trilinear where
+// it leaves the filters to the implementation) where it gives none; values outside the enumerations and
+// references to samplers that do not exist are errors naming the place.
+TEST(GltfLoader, SamplersAreRead) {
+  auto file = [](const json& samplers, const json& textures) {
+    GltfFile f;
+    int pos = f.accessor(f.view(std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0}), kFloat, 3, "VEC3");
+    f.mesh({{"POSITION", pos}}, -1, 0);
+    json prim = f.j["meshes"][0]["primitives"][0];
+    for (int mi = 1; mi < 4; ++mi) {
+      prim["material"] = mi;
+      f.j["meshes"][0]["primitives"].push_back(prim);
+    }
+    f.j["materials"] = json::array();
+    for (int mi = 0; mi < 3; ++mi)
+      f.j["materials"].push_back({{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", mi}}}}}});
+    f.j["materials"].push_back(json::object());  // untextured
+    f.j["samplers"] = samplers;
+    f.j["textures"] = textures;
+    return f;
+  };
+  const json samplers = json::array({{{"wrapS", 33071}, {"wrapT", 33648}, {"magFilter", 9728}, {"minFilter", 9984}},
+                                     json::object(),
+                                     {{"minFilter", 9729}, {"magFilter", 9729}}});
+  GltfFile f = file(samplers, json::array({{{"sampler", 0}}, {{"sampler", 1}}, {{"sampler", 2}}}));
+  auto m = load_model(f.write("samplers"));
+  ASSERT_TRUE(m.ok()) << m.error().message();
+  const MeshLod& lod = m->lods[0];
+  ASSERT_EQ(lod.primitives.size(), 4u);
+  auto sampler = [&](int k) { return m->materials[lod.primitives[k].material].sampler; };
+  const TextureSampler s0 = sampler(0), s1 = sampler(1), s2 = sampler(2), s3 = sampler(3);
+  EXPECT_EQ(s0.wrap_s, Wrap::kClampToEdge);
+  EXPECT_EQ(s0.wrap_t, Wrap::kMirroredRepeat);
+  EXPECT_TRUE(s0.mag_nearest);
+  EXPECT_TRUE(s0.min_nearest);
+  EXPECT_TRUE(s0.mipmaps);
+  EXPECT_TRUE(s0.mip_nearest);
+  EXPECT_EQ(s1, TextureSampler{});  // nothing given: repeat, trilinear
+  EXPECT_EQ(s1.wrap_s, Wrap::kRepeat);
+  EXPECT_FALSE(s1.mag_nearest || s1.min_nearest || s1.mip_nearest);
+  EXPECT_TRUE(s1.mipmaps);
+  EXPECT_FALSE(s2.mipmaps);  // LINEAR: level 0 only
+  EXPECT_FALSE(s2.min_nearest || s2.mag_nearest);
+  EXPECT_EQ(s3, TextureSampler{});  // untextured
+
+  struct Case {
+    json samplers, textures;
+    const char* where;
+  };
+  for (const Case& c : {Case{json::array({{{"wrapS", 1234}}}), json::array({{{"sampler", 0}}}), "$.samplers[0].wrapS"},
+                        Case{json::array({{{"wrapT", 9729}}}), json::array({{{"sampler", 0}}}), "$.samplers[0].wrapT"},
+                        Case{json::array({{{"magFilter", 9984}}}), json::array({{{"sampler", 0}}}), "$.samplers[0].magFilter"},
+                        Case{json::array({{{"minFilter", 9730}}}), json::array({{{"sampler", 0}}}), "$.samplers[0].minFilter"},
+                        Case{json::array({json::object()}), json::array({json::object(), {{"sampler", 3}}}), "$.textures[1].sampler"}}) {
+    GltfFile g = file(c.samplers, c.textures);
+    auto bad = load_model(g.write("bad_sampler"));
+    ASSERT_FALSE(bad.ok()) << c.where;
+    EXPECT_EQ(bad.error().where, c.where) << bad.error().message();
+  }
+}
+
+// Morph targets are drawn at their default weights, baked into the vertices: the node's weights where it
+// gives them, else the mesh's. Normals move with their targets and are renormalized. Animated weights are
+// counted, not played; weights that do not match the targets are an error.
+TEST(GltfLoader, MorphTargetsAtTheirDefaultWeights) {
+  auto file = [](const json& mesh_weights, const json& node_weights) {
+    GltfFile f;
+    int pos = f.accessor(f.view(std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0}), kFloat, 3, "VEC3");
+    int nrm = f.accessor(f.view(std::vector<float>{0, 0, 1, 0, 0, 1, 0, 0, 1}), kFloat, 3, "VEC3");
+    int up = f.accessor(f.view(std::vector<float>{0, 0, 2, 0, 0, 2, 0, 0, 2}), kFloat, 3, "VEC3");
+    int right = f.accessor(f.view(std::vector<float>{4, 0, 0, 0, 0, 0, 0, 0, 0}), kFloat, 3, "VEC3");
+    int tilt = f.accessor(f.view(std::vector<float>{1, 0, -1, 1, 0, -1, 1, 0, -1}), kFloat, 3, "VEC3");
+    f.mesh({{"POSITION", pos}, {"NORMAL", nrm}});
+    f.j["meshes"][0]["primitives"][0]["targets"] = json::array({{{"POSITION", up}}, {{"POSITION", right}, {"NORMAL", tilt}}});
+    if (!mesh_weights.is_null()) f.j["meshes"][0]["weights"] = mesh_weights;
+    if (!node_weights.is_null()) f.j["nodes"][0]["weights"] = node_weights;
+    // A clip on the weights (input 0 and 1 s, outputs two weights per key) and one on the translation.
+    int times = f.accessor(f.view(std::vector<float>{0, 1}), kFloat, 2, "SCALAR");
+    f.last_accessor()["min"] = {0};
+    f.last_accessor()["max"] = {1};
+    int wv = f.accessor(f.view(std::vector<float>{0, 0, 1, 1}), kFloat, 4, "SCALAR");
+    int tv = f.accessor(f.view(std::vector<float>{0, 0, 0, 0, 1, 0}), kFloat, 2, "VEC3");
+    f.j["animations"] = json::array({{{"samplers", json::array({{{"input", times}, {"output", wv}}, {{"input", times}, {"output", tv}}})},
+                                      {"channels", json::array({{{"sampler", 0}, {"target", {{"node", 0}, {"path", "weights"}}}},
+                                                                {{"sampler", 1}, {"target", {{"node", 0}, {"path", "translation"}}}}})}}});
+    return f;
+  };
+  {
+    GltfFile f = file(json::array({0.5, 0.0}), nullptr);
+    auto m = load_model(f.write("morph_mesh_weights"));
+    ASSERT_TRUE(m.ok()) << m.error().message();
+    const auto& v = m->lods[0].vertices;
+    ASSERT_EQ(v.size(), 3u);
+    expect_vec(v[0].position, {0, 0, 1});
+    expect_vec(v[1].position, {1, 0, 1});
+    expect_vec(v[0].normal, {0, 0, 1});
+    EXPECT_EQ(m->morph_report.primitives, 1u);
+    EXPECT_EQ(m->morph_report.most_targets, 2);
+    EXPECT_EQ(m->morph_report.weighted_targets, 1u);
+    EXPECT_EQ(m->morph_report.weight_channels, 1);
+    ASSERT_EQ(m->clips.size(), 1u);
+    EXPECT_EQ(m->clips[0].channels.size(), 1u);  // the translation
+  }
+  {
+    GltfFile f = file(json::array({0.5, 0.0}), json::array({0.25, 1.0}));  // the node's weights win
+    auto m = load_model(f.write("morph_node_weights"));
+    ASSERT_TRUE(m.ok()) << m.error().message();
+    const auto& v = m->lods[0].vertices;
+    expect_vec(v[0].position, {4, 0, 0.5f});
+    expect_vec(v[2].position, {0, 1, 0.5f});
+    expect_vec(v[0].normal, {1, 0, 0}, 1e-6f);  // (0, 0, 1) + 1 * (1, 0, -1)
+    EXPECT_EQ(m->morph_report.weighted_targets, 2u);
+  }
+  {
+    GltfFile f = file(nullptr, nullptr);  // no weights: all 0
+    auto m = load_model(f.write("morph_no_weights"));
+    ASSERT_TRUE(m.ok()) << m.error().message();
+    expect_vec(m->lods[0].vertices[1].position, {1, 0, 0});
+    EXPECT_EQ(m->morph_report.weighted_targets, 0u);
+  }
+  {
+    GltfFile f = file(json::array({0.5, 0.0, 1.0}), nullptr);
+    auto m = load_model(f.write("morph_bad_weights"));
+    ASSERT_FALSE(m.ok());
+    EXPECT_EQ(m.error().where, "$.meshes[0].weights") << m.error().message();
+  }
+}
+
 // EXT_meshopt_compression: positions (attributes), normals (octahedral filter) and indices (triangles)
 // encoded with meshoptimizer decode to what was encoded. A damaged stream is an error naming the view.
 TEST(GltfLoader, MeshoptCompressedViewsDecode) {

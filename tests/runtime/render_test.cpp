@@ -993,6 +993,71 @@ TEST(CrowdRender, VertexColoursMultiplyTheBaseColour) {
   }
 }
 
+// A material's sampler decides how the texture is read outside [0, 1] and when magnified. The square's u
+// runs from -1 to 2 across it over a texture of two texels (blue, red); read with the nearest texel, the
+// middle row crosses bands of pure colour: one change of colour with clamp-to-edge (blue up to u = 0.5,
+// red after), three with mirrored repeat (red, blue, red, blue) and five with repeat. Bilinear filtering
+// (the default) blends the bands into each other. Both paths.
+TEST(CrowdRender, SamplersWrapAndFilterTheTexture) {
+  REQUIRE_GL();
+  struct Kind {
+    const char* name;
+    Wrap wrap;
+    bool nearest;
+    int changes;  // of colour along the middle row; -1: blended
+  };
+  const Kind kinds[] = {{"clamp, nearest", Wrap::kClampToEdge, true, 1},
+                        {"mirrored repeat, nearest", Wrap::kMirroredRepeat, true, 3},
+                        {"repeat, nearest", Wrap::kRepeat, true, 5},
+                        {"repeat, bilinear", Wrap::kRepeat, false, -1}};
+  for (const Kind& k : kinds) {
+    Model m = square_model();
+    for (Vertex& v : m.lods[0].vertices) {
+      const float c = std::cos(glm::radians(30.0f)), s = std::sin(glm::radians(30.0f));
+      const float x = c * v.position.x + s * (v.position.y - 1.0f);
+      v.uv = {x < 0.0f ? -1.0f : 2.0f, 0.5f};
+    }
+    Texture t;
+    t.width = 2;
+    t.height = 1;
+    t.rgba = {0, 0, 255, 255, 255, 0, 0, 255};
+    m.textures = {t};
+    m.materials[0].texture = 0;
+    m.materials[0].sampler.wrap_s = k.wrap;
+    m.materials[0].sampler.mag_nearest = k.nearest;
+    auto frames = square_frames(m);
+    ASSERT_EQ(frames.size(), 2u);
+    for (const auto& [mode, px] : frames) {
+      const char* path = mode == RenderMode::kGeometry ? " geometry" : " impostor";
+      std::string row;  // the middle row's opaque pixels: R(ed), B(lue) or - (between)
+      for (int x = 0; x < 128; ++x) {
+        const std::uint8_t* p = &px[(64 * 128 + x) * 4];
+        if (p[3] < 255) continue;
+        row += p[0] > 100 && p[2] < 10 ? 'R' : p[2] > 100 && p[0] < 10 ? 'B' : '-';
+      }
+      int changes = 0, between = 0;
+      char last = 0;
+      for (char ch : row) {
+        if (ch == '-') {
+          ++between;
+          continue;
+        }
+        changes += last && ch != last;
+        last = ch;
+      }
+      std::printf("%s%s: %s\n", k.name, path, row.c_str());
+      EXPECT_GT(row.size(), 50u) << k.name << path;
+      if (k.changes >= 0) {
+        EXPECT_EQ(changes, k.changes) << k.name << path;
+        EXPECT_LE(between, 2 * k.changes + 2) << k.name << path;  // hard edges: a pixel or two each
+        EXPECT_EQ(row.front(), k.wrap == Wrap::kMirroredRepeat ? 'R' : 'B') << k.name << path;
+      } else {
+        EXPECT_GT(between, static_cast<int>(row.size()) / 2) << k.name << path;
+      }
+    }
+  }
+}
+
 TEST(CrowdRender, PlainTexturedAndMaskedMaterials) {
   REQUIRE_GL();
   struct Kind {

@@ -66,9 +66,25 @@ struct MeshLod {
   std::size_t triangle_count() const { return indices.size() / 3; }
 };
 
+// How a material's texture is read: a glTF sampler (its defaults where the file gives none; the
+// minification filter glTF leaves to the implementation is trilinear here).
+enum class Wrap : std::uint8_t { kRepeat, kClampToEdge, kMirroredRepeat };
+struct TextureSampler {
+  Wrap wrap_s = Wrap::kRepeat, wrap_t = Wrap::kRepeat;  // s: u, t: v
+  bool mag_nearest = false;  // magnified: the nearest texel, else bilinear
+  bool min_nearest = false;  // minified: the nearest texel of a level, else bilinear
+  bool mipmaps = true;       // minified: from the mip chain (glTF's *_MIPMAP_* filters), else level 0 only
+  bool mip_nearest = false;  // with mipmaps: the nearest level, else a blend of the two nearest
+  bool operator==(const TextureSampler& o) const {
+    return wrap_s == o.wrap_s && wrap_t == o.wrap_t && mag_nearest == o.mag_nearest && min_nearest == o.min_nearest &&
+           mipmaps == o.mipmaps && mip_nearest == o.mip_nearest;
+  }
+};
+
 struct Material {
   glm::vec4 base_color{1.0f};  // linear factor
   int texture = -1;            // into Model::textures, or -1
+  TextureSampler sampler;      // how `texture` is read
   float alpha_cutoff = 0.5f;   // used when alpha_mask
   bool alpha_mask = false;
   bool vertex_colors = false;  // its primitives' vertices carry colours (Vertex::color)
@@ -165,6 +181,15 @@ struct SkinReport {
   int skin_joints = 0;                // joints of the largest skin used
 };
 
+// Morph targets as the loader found them. This runtime draws every mesh at its default weights (the
+// node's `weights`, else the mesh's), baked into the vertices at load; animated weights are not played.
+struct MorphReport {
+  std::size_t primitives = 0;      // primitives with targets, over every level
+  int most_targets = 0;            // on one primitive
+  std::size_t weighted_targets = 0;  // targets with a non-zero default weight, baked in
+  int weight_channels = 0;         // animation channels on "weights" (not played)
+};
+
 class Model {
  public:
   std::string name;  // file stem
@@ -175,6 +200,7 @@ class Model {
   std::vector<Texture> textures;
   std::vector<Clip> clips;           // may be empty (then the rest pose is a 0 s clip)
   SkinReport skin_report;            // set by load_model
+  MorphReport morph_report;          // set by load_model
 
   // Section 4.2: Ta, the centre of the bounds of every pose of every clip (model space, measured
   // relative to the root's horizontal travel, see BakedClip::root_offset, so a clip that walks

@@ -107,8 +107,9 @@ class Renderer {
   // Draws one frame into the currently bound draw framebuffer, with the plan's camera viewport
   // (0, 0, width, height). Does not clear it. Snapshots first (they change the atlas), then
   // geometry, then impostors. `plan` must come from a FramePlanner of the same model and config.
-  // GL state left changed: program 0, VAO 0, texture units 0-2, viewport, depth test on (LESS,
-  // writes on), blending, alpha to coverage and face culling off (multisampling as found).
+  // GL state left changed: program 0, VAO 0, the textures bound to units 0-6 (no sampler objects
+  // left bound), viewport, depth test on (LESS, writes on), blending, alpha to coverage and face
+  // culling off (multisampling as found).
   void draw(const FramePlan& plan, const DrawOptions& options = {});
   // The directional light (world, towards the light; normalised here; default (0.4, 0.8, 0.6)).
   // Geometry and new snapshots take it at once; impostors already in the atlas keep the light
