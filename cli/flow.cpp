@@ -218,8 +218,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   else if (a.mode != "both") return fail("--mode: expected geometry, impostor or both (got \"" + a.mode + "\")");
   if (!parse_threshold(a.posture, &s.posture_test, &s.posture_threshold))
     return fail("--posture: expected a relative threshold >= 0 or off (got \"" + a.posture + "\")");
-  if (!parse_threshold(a.view, &s.view_test, &s.view_deg))
-    return fail("--view: expected degrees >= 0 or off (got \"" + a.view + "\")");
+  // The angle between two orientations is at most 180 degrees: a larger threshold never fires.
+  if (!parse_threshold(a.view, &s.view_test, &s.view_deg) || (s.view_test && s.view_deg > 180.0f))
+    return fail("--view: expected degrees from 0 to 180 or off (got \"" + a.view + "\")");
   if (!a.sweep.empty() && a.sweep != "posture" && a.sweep != "view")
     return fail("--sweep: expected posture or view (got \"" + a.sweep + "\")");
   if (!a.sweep.empty() && a.mode != "both") return fail("--sweep needs --mode both");
@@ -591,7 +592,7 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--size", a->size, "Scene window WxH")->capture_default_str();
   cmd->add_option("--mode", a->mode, "geometry, impostor or both (same frames, interleaved)")->capture_default_str();
   cmd->add_option("--posture", a->posture, "Posture threshold (relative) or off")->capture_default_str();
-  cmd->add_option("--view", a->view, "View-angle threshold in degrees or off")->capture_default_str();
+  cmd->add_option("--view", a->view, "View-angle threshold in degrees (0 to 180) or off")->capture_default_str();
   cmd->add_flag("--distance-weighting", a->distance_weighting, "Weight both thresholds by distance to the viewer");
   cmd->add_option("--screen-weighting", a->screen_weighting,
                   "Weight both thresholds by PX / height on screen for humans shorter than PX pixels, or off")

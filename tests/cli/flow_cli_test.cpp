@@ -449,7 +449,8 @@ TEST(FlowCli, BadFlagsAreErrors) {
                            "flow --variants 17", "flow --model /nonexistent.glb --variants 2",
                            "flow --flush-every 0", "flow --flush-every often", "flow --flush-every 12k",
                            "flow --short-lived sometimes", "flow --targets --mode impostor",
-                           "flow --texels-per-pixel nan", "flow --orbit inf", "flow --orbit 1e30", "flow --view inf"}) {
+                           "flow --texels-per-pixel nan", "flow --orbit inf", "flow --orbit 1e30", "flow --view inf",
+                           "flow --view 181"}) {
     Out o = run(args);
     EXPECT_NE(o.status, 0) << args;
     EXPECT_NE(o.text.find("flow"), std::string::npos) << args << ": " << o.text;
