@@ -19,6 +19,7 @@
 #include "chart.h"
 #include "commands.h"
 #include "io.h"
+#include "model_notes.h"
 
 namespace bb::cli {
 
@@ -334,9 +335,14 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     model_paths = *p;
   }
   std::vector<runtime::Model> loaded;
+  ordered_json notes = ordered_json::array();  // what the runtime does not draw as a file says
   for (const std::string& path : model_paths) {
     auto m = runtime::load_model(path);
     if (!m) return fail(m.error().message());
+    for (const std::string& n : model_notes(*m)) {
+      if (!a.json) std::fprintf(stderr, "flow: note: %s: %s\n", path.c_str(), n.c_str());
+      notes.push_back(path + ": " + n);
+    }
     loaded.push_back(std::move(*m));
   }
   std::vector<const runtime::Model*> model;  // the crowd's models, human i of model[i % size]
@@ -355,6 +361,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   report = to_json(*result, s);
   report["model"] = model_paths.front();
   if (model_paths.size() > 1) report["models"] = model_paths;
+  if (!notes.empty()) report["model_notes"] = notes;
   report["device"] = device;
   std::vector<std::string> written;
   // Sample frames of an earlier run into the same folder (another --frames keeps other frames)

@@ -16,6 +16,7 @@
 #include "bb/runtime/portrait.h"
 #include "commands.h"
 #include "io.h"
+#include "model_notes.h"
 
 namespace bb::cli {
 
@@ -58,6 +59,7 @@ int run_render(const RenderArgs& a) {
     return 1;
   }
   const double load_ms = ms(t0);
+  for (const std::string& n : model_notes(*model)) std::cerr << "bodybuilder render: note: " << n << "\n";
   if (a.lod >= 0) {
     if (a.lod >= static_cast<int>(model->lods.size())) {
       std::cerr << "bodybuilder render: " << a.input << ": --lod " << a.lod << ": the file has "
