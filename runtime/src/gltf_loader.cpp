@@ -453,9 +453,9 @@ struct Builder {
     const tg::Mesh& mesh = c.m.meshes[mi];
     const bool own = !node.weights.empty();
     const std::vector<double>& w = own ? node.weights : mesh.weights;
+    const std::string ww = own ? idx("nodes", gn) + ".weights" : idx("meshes", mi) + ".weights";
     if (!w.empty() && w.size() != p.targets.size())
-      return c.err(own ? idx("nodes", gn) + ".weights" : idx("meshes", mi) + ".weights",
-                   "has " + std::to_string(w.size()) + " weights, " + pw + " has " + std::to_string(p.targets.size()) + " targets");
+      return c.err(ww, "has " + std::to_string(w.size()) + " weights, " + pw + " has " + std::to_string(p.targets.size()) + " targets");
     MorphReport& rep = out.morph_report;
     ++rep.primitives;
     rep.most_targets = std::max(rep.most_targets, static_cast<int>(p.targets.size()));
@@ -463,7 +463,7 @@ struct Builder {
     for (std::size_t t = 0; t < p.targets.size(); ++t) {
       const double wt = t < w.size() ? w[t] : 0.0;
       const std::string tw = pw + ".targets[" + std::to_string(t) + "]";
-      if (!std::isfinite(wt)) return c.err(own ? idx("nodes", gn) + ".weights" : idx("meshes", mi) + ".weights", "a weight is not finite");
+      if (!std::isfinite(wt)) return c.err(ww, "weight " + std::to_string(t) + " is not finite");
       for (const auto& [name, ai] : p.targets[t]) {
         const bool is_pos = name == "POSITION", is_nrm = name == "NORMAL";
         if (wt == 0.0 || !(is_pos || (is_nrm && !nrm.empty()))) continue;  // TANGENT, TEXCOORD_n, COLOR_n: not drawn

@@ -75,10 +75,7 @@ struct TextureSampler {
   bool min_nearest = false;  // minified: the nearest texel of a level, else bilinear
   bool mipmaps = true;       // minified: from the mip chain (glTF's *_MIPMAP_* filters), else level 0 only
   bool mip_nearest = false;  // with mipmaps: the nearest level, else a blend of the two nearest
-  bool operator==(const TextureSampler& o) const {
-    return wrap_s == o.wrap_s && wrap_t == o.wrap_t && mag_nearest == o.mag_nearest && min_nearest == o.min_nearest &&
-           mipmaps == o.mipmaps && mip_nearest == o.mip_nearest;
-  }
+  bool operator==(const TextureSampler&) const = default;
 };
 
 struct Material {
