@@ -399,6 +399,41 @@ Model square_model() {
   return m;
 }
 
+// `m` alone, fresh (both thresholds 0), drawn into a 128 x 128 target at 4x MSAA, a square_model about
+// 60 pixels wide: frame() draws one path and gives its RGBA pixels.
+struct SquareScene {
+  explicit SquareScene(const Model& model) : m(model), crowd(model), planner(model, fresh()) {
+    crowd.add(Character{});
+    auto r = Renderer::create(m, fresh());
+    EXPECT_TRUE(r.ok()) << r.error().message();
+    if (r.ok()) renderer = std::move(*r);
+    auto t = OffscreenTarget::create(128, 128, 4);
+    EXPECT_TRUE(t.ok());
+    if (t.ok()) target = std::move(*t);
+    cam.width = cam.height = 128;
+    cam.target = m.ta;
+    cam.eye = m.ta + glm::vec3(0, 0, cam.pixels_per_metre(1.0f) / 60.0f);
+  }
+  static ImpostorConfig fresh() {
+    ImpostorConfig cfg;
+    cfg.cache.posture_threshold = 0.0f;
+    cfg.cache.view_threshold_deg = 0.0f;
+    return cfg;
+  }
+  bool ok() const { return renderer && target; }
+  std::vector<std::uint8_t> frame(RenderMode mode, const DrawOptions& o = {}) {
+    target->bind(true);
+    renderer->draw(planner.plan(crowd, cam, 0.0f, mode), o);
+    return target->read_rgba();
+  }
+  const Model& m;
+  Crowd crowd;
+  FramePlanner planner;
+  std::unique_ptr<Renderer> renderer;
+  std::unique_ptr<OffscreenTarget> target;
+  SceneCamera cam;
+};
+
 struct EdgeCounts {
   int opaque = 0, partial = 0;
   int opaque_off = 0;      // opaque pixels whose colour is not the flat colour
@@ -431,27 +466,10 @@ EdgeCounts count_edges(const std::vector<std::uint8_t>& px, int flat) {
 // colour straight (premultiplied by coverage, no dark or bright fringe); the alpha test gives none.
 TEST(ImpostorEdges, CoverageLikeMultisampledGeometryWithoutFringes) {
   REQUIRE_GL();
-  Model m = square_model();
-  Crowd crowd(m);
-  crowd.add(Character{});
-  ImpostorConfig cfg;
-  cfg.cache.posture_threshold = 0.0f;
-  cfg.cache.view_threshold_deg = 0.0f;
-  FramePlanner planner(m, cfg);
-  auto renderer = Renderer::create(m, cfg);
-  ASSERT_TRUE(renderer.ok()) << renderer.error().message();
-  auto target = OffscreenTarget::create(128, 128, 4);
-  ASSERT_TRUE(target.ok());
-  SceneCamera cam;
-  cam.width = cam.height = 128;
-  cam.target = m.ta;
-  cam.eye = m.ta + glm::vec3(0, 0, cam.pixels_per_metre(1.0f) / 60.0f);  // the square ~60 px wide
-  auto frame = [&](RenderMode mode, const DrawOptions& o) {
-    (*target)->bind(true);
-    const FramePlan& p = planner.plan(crowd, cam, 0.0f, mode);
-    (*renderer)->draw(p, o);
-    return (*target)->read_rgba();
-  };
+  const Model m = square_model();
+  SquareScene scene(m);
+  ASSERT_TRUE(scene.ok());
+  auto frame = [&](RenderMode mode, const DrawOptions& o) { return scene.frame(mode, o); };
   const auto geometry = frame(RenderMode::kGeometry, {});
   // Lighting 0.35 + 0.65 n.l with n = +Z and l = unit(0.4, 0.8, 0.6): 0.7121 of white -> 182.
   const int flat = 182;
@@ -933,34 +951,12 @@ TEST(CrowdRender, DepthCorrectedCardsFollowTheParallax) {
 }
 
 
-// The three kinds of material, each drawn by its own shader variant: plain (the flat colour),
-// textured (the texture's colour, its alpha ignored) and masked (texels below the cutoff
-// discarded), as geometry and as impostors. The texture is 4x1: two blue texels of alpha 0, then
-// two red opaque ones; u runs from 0.125 to 0.875 across the square, so the mask keeps half of it.
-// square_model drawn fresh (both thresholds 0) as geometry and as an impostor, 128 x 128 at 4x MSAA, the
-// square about 60 pixels wide: the RGBA pixels of each path.
+// The frames of both paths of a SquareScene of `m` (none where it could not be made).
 std::map<RenderMode, std::vector<std::uint8_t>> square_frames(const Model& m) {
   std::map<RenderMode, std::vector<std::uint8_t>> frames;
-  Crowd crowd(m);
-  crowd.add(Character{});
-  ImpostorConfig cfg;
-  cfg.cache.posture_threshold = 0.0f;
-  cfg.cache.view_threshold_deg = 0.0f;
-  FramePlanner planner(m, cfg);
-  auto renderer = Renderer::create(m, cfg);
-  EXPECT_TRUE(renderer.ok()) << renderer.error().message();
-  auto target = OffscreenTarget::create(128, 128, 4);
-  EXPECT_TRUE(target.ok());
-  if (!renderer.ok() || !target.ok()) return frames;
-  SceneCamera cam;
-  cam.width = cam.height = 128;
-  cam.target = m.ta;
-  cam.eye = m.ta + glm::vec3(0, 0, cam.pixels_per_metre(1.0f) / 60.0f);
-  for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) {
-    (*target)->bind(true);
-    (*renderer)->draw(planner.plan(crowd, cam, 0.0f, mode));
-    frames[mode] = (*target)->read_rgba();
-  }
+  SquareScene scene(m);
+  if (!scene.ok()) return frames;
+  for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) frames[mode] = scene.frame(mode);
   return frames;
 }
 
@@ -1058,6 +1054,10 @@ TEST(CrowdRender, SamplersWrapAndFilterTheTexture) {
   }
 }
 
+// The three kinds of material, each drawn by its own shader variant: plain (the flat colour),
+// textured (the texture's colour, its alpha ignored) and masked (texels below the cutoff
+// discarded), as geometry and as impostors. The texture is 4x1: two blue texels of alpha 0, then
+// two red opaque ones; u runs from 0.125 to 0.875 across the square, so the mask keeps half of it.
 TEST(CrowdRender, PlainTexturedAndMaskedMaterials) {
   REQUIRE_GL();
   struct Kind {
