@@ -129,6 +129,7 @@ layout(binding = 1) uniform sampler2D u_tex;
 uniform vec4 u_color;
 uniform float u_cutoff;  // < 0: opaque
 uniform vec3 u_light;    // unit, world, towards the light
+uniform float u_lit;     // 1: lit; 0: unlit (KHR_materials_unlit: the colour as is)
 in vec3 v_nrm;
 in vec2 v_uv;
 #ifdef BB_COLORED
@@ -137,7 +138,8 @@ in vec4 v_color;
 layout(location = 0) out vec4 o_color;
 #ifdef BB_NORMALS
 // Relit snapshots (ImpostorConfig::relight): the albedo, and the normal in the snapshot camera's
-// frame (Ho, Uo, Vo), encoded n * 0.5 + 0.5; the impostor shader lights them as drawn.
+// frame (Ho, Uo, Vo), encoded n * 0.5 + 0.5, and in its alpha whether the texel is lit (u_lit); the
+// impostor shader lights them as drawn.
 flat in vec3 v_ho, v_uo, v_vo;
 layout(location = 1) out vec4 o_normal;
 #endif
@@ -164,9 +166,9 @@ void main() {
   if (!gl_FrontFacing) n = -n;
 #ifdef BB_NORMALS
   o_color = vec4(c.rgb, 1.0);
-  o_normal = vec4(vec3(dot(n, v_ho), dot(n, v_uo), dot(n, v_vo)) * 0.5 + 0.5, 1.0);
+  o_normal = vec4(vec3(dot(n, v_ho), dot(n, v_uo), dot(n, v_vo)) * 0.5 + 0.5, u_lit);
 #else
-  float l = 0.35 + 0.65 * max(dot(n, u_light), 0.0);
+  float l = mix(1.0, 0.35 + 0.65 * max(dot(n, u_light), 0.0), u_lit);
   o_color = vec4(c.rgb * l, 1.0);  // premultiplied, opaque
 #endif
 #ifdef BB_OFFSET
@@ -330,8 +332,9 @@ uniform int u_depth_pass;  // 1: blended cards' depth pass (opaque texels, no co
 layout(location = 0) out vec4 o_color;
 #ifdef BB_RELIGHT
 // Relit snapshots: the atlas holds the albedo and this the normals (premultiplied like the colour,
-// in the snapshot's frame, encoded n * 0.5 + 0.5), lit here in the quad's frame of now, so a card
-// turned by its bone since its snapshot is shaded as it now lies under the light.
+// in the snapshot's frame, encoded n * 0.5 + 0.5; alpha: the share of lit texels, unlit materials
+// being 0), lit here in the quad's frame of now, so a card turned by its bone since its snapshot is
+// shaded as it now lies under the light.
 layout(binding = 5) uniform sampler2DArray u_atlas_normal;
 uniform vec3 u_light;  // unit, world, towards the light
 flat in mat3 v_frame;
@@ -341,7 +344,7 @@ vec4 lit(vec4 c, vec4 m) {
   vec3 n = v_frame * (m.rgb / c.a * 2.0 - 1.0);
   float len = length(n);
   float l = len > 1e-4 ? 0.35 + 0.65 * max(dot(n / len, u_light), 0.0) : 0.35;
-  return vec4(c.rgb * l, c.a);
+  return vec4(c.rgb * mix(1.0, l, clamp(m.a / c.a, 0.0, 1.0)), c.a);
 }
 vec4 tap(vec2 uv) {
   vec3 p = vec3(uv, v_uvl.z);
@@ -664,7 +667,7 @@ struct Renderer::Impl {
   static constexpr std::size_t kShadeVariants = 6;
   struct ShadeProgram {
     std::array<GLuint, kShadeVariants> prog{};
-    std::array<GLint, kShadeVariants> color{}, cutoff{}, viewproj{};
+    std::array<GLint, kShadeVariants> color{}, cutoff{}, lit{}, viewproj{};
     static std::size_t variant(const Material& m) {
       return (m.alpha_mask ? 2 : m.texture >= 0 ? 1 : 0) + (m.vertex_colors ? 3 : 0);
     }
@@ -787,6 +790,7 @@ struct Renderer::Impl {
     glUseProgram(sp.prog[v]);
     glProgramUniform4fv(sp.prog[v], sp.color[v], 1, glm::value_ptr(m.base_color));
     glProgramUniform1f(sp.prog[v], sp.cutoff[v], m.alpha_cutoff);
+    glProgramUniform1f(sp.prog[v], sp.lit[v], m.unlit ? 0.0f : 1.0f);
     if (v % 3 > 0) {
       glBindTextureUnit(1, m.texture >= 0 ? textures[m.texture] : white);
       glBindSampler(1, samplers[material]);
@@ -974,6 +978,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
       sp.prog[v] = *p;
       sp.color[v] = glGetUniformLocation(*p, "u_color");
       sp.cutoff[v] = glGetUniformLocation(*p, "u_cutoff");
+      sp.lit[v] = glGetUniformLocation(*p, "u_lit");
       sp.viewproj[v] = glGetUniformLocation(*p, "u_viewproj");
       glProgramUniform1i(*p, glGetUniformLocation(*p, "u_palette_size"), static_cast<GLint>(model.palette.size()));
     }

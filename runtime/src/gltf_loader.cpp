@@ -435,6 +435,7 @@ struct Builder {
       mat.texture = texture_for_image(c.m.textures[ti].source);
       if (const int si = c.m.textures[ti].sampler; si >= 0) mat.sampler = sampler_table[si];
     }
+    mat.unlit = gm.extensions.count("KHR_materials_unlit") > 0;
     if (gm.alphaMode == "MASK" || gm.alphaMode == "BLEND") {
       mat.alpha_mask = true;
       mat.alpha_cutoff = gm.alphaMode == "MASK" ? static_cast<float>(gm.alphaCutoff) : 0.5f;
@@ -880,8 +881,8 @@ std::optional<std::vector<unsigned char>> glb_without_fallback_lengths(const std
 // The extensions this loader reads; a file that requires any other is refused by name.
 // (KHR_meshopt_compression is not: its vertex data is in meshopt's version 1 format, which meshoptimizer
 // 0.18, Debian 12's, cannot decode.)
-constexpr const char* kReadExtensions[] = {"KHR_mesh_quantization", "KHR_texture_transform", "EXT_meshopt_compression",
-                                           "MSFT_lod"};
+constexpr const char* kReadExtensions[] = {"KHR_mesh_quantization", "KHR_texture_transform", "KHR_materials_unlit",
+                                           "EXT_meshopt_compression", "MSFT_lod"};
 
 Status check_required_extensions(const Ctx& c) {
   for (std::size_t i = 0; i < c.m.extensionsRequired.size(); ++i) {

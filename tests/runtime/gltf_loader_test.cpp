@@ -273,6 +273,26 @@ TEST(GltfLoader, SamplersAreRead) {
   }
 }
 
+// KHR_materials_unlit marks its material unlit, also where a file requires the extension; other
+// materials stay lit.
+TEST(GltfLoader, UnlitMaterialsAreMarked) {
+  GltfFile f;
+  int pos = f.accessor(f.view(std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0}), kFloat, 3, "VEC3");
+  f.mesh({{"POSITION", pos}}, -1, 0);
+  json prim = f.j["meshes"][0]["primitives"][0];
+  prim["material"] = 1;
+  f.j["meshes"][0]["primitives"].push_back(prim);
+  f.j["materials"] = json::array({{{"extensions", {{"KHR_materials_unlit", json::object()}}}}, json::object()});
+  f.j["extensionsUsed"] = {"KHR_materials_unlit"};
+  f.j["extensionsRequired"] = {"KHR_materials_unlit"};
+  auto m = load_model(f.write("unlit"));
+  ASSERT_TRUE(m.ok()) << m.error().message();
+  const MeshLod& lod = m->lods[0];
+  ASSERT_EQ(lod.primitives.size(), 2u);
+  EXPECT_TRUE(m->materials[lod.primitives[0].material].unlit);
+  EXPECT_FALSE(m->materials[lod.primitives[1].material].unlit);
+}
+
 // Morph targets are drawn at their default weights, baked into the vertices: the node's weights where it
 // gives them, else the mesh's. Normals move with their targets and are renormalized. Animated weights are
 // counted, not played; weights that do not match the targets are an error.

@@ -399,12 +399,12 @@ Model square_model() {
   return m;
 }
 
-// `m` alone, fresh (both thresholds 0), drawn into a 128 x 128 target at 4x MSAA, a square_model about
+// `m` alone, fresh (both thresholds 0; `cfg` may change the rest), drawn into a 128 x 128 target at 4x MSAA, a square_model about
 // 60 pixels wide: frame() draws one path and gives its RGBA pixels.
 struct SquareScene {
-  explicit SquareScene(const Model& model) : m(model), crowd(model), planner(model, fresh()) {
+  explicit SquareScene(const Model& model, const ImpostorConfig& cfg = fresh()) : m(model), crowd(model), planner(model, cfg) {
     crowd.add(Character{});
-    auto r = Renderer::create(m, fresh());
+    auto r = Renderer::create(m, cfg);
     EXPECT_TRUE(r.ok()) << r.error().message();
     if (r.ok()) renderer = std::move(*r);
     auto t = OffscreenTarget::create(128, 128, 4);
@@ -952,9 +952,9 @@ TEST(CrowdRender, DepthCorrectedCardsFollowTheParallax) {
 
 
 // The frames of both paths of a SquareScene of `m` (none where it could not be made).
-std::map<RenderMode, std::vector<std::uint8_t>> square_frames(const Model& m) {
+std::map<RenderMode, std::vector<std::uint8_t>> square_frames(const Model& m, const ImpostorConfig& cfg = SquareScene::fresh()) {
   std::map<RenderMode, std::vector<std::uint8_t>> frames;
-  SquareScene scene(m);
+  SquareScene scene(m, cfg);
   if (!scene.ok()) return frames;
   for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) frames[mode] = scene.frame(mode);
   return frames;
@@ -986,6 +986,51 @@ TEST(CrowdRender, VertexColoursMultiplyTheBaseColour) {
                 path, opaque, matched);
     EXPECT_GT(opaque, 2000) << path;
     EXPECT_EQ(matched, opaque) << path;
+  }
+}
+
+// An unlit material (KHR_materials_unlit) is drawn in its base colour, (0.4, 0.2, 0.8) -> (102, 51, 204),
+// in both paths, with baked and with relit snapshots; a relit one stays so after the light moves. The
+// same square lit has other colours (white lit: 182, see ImpostorEdges).
+TEST(CrowdRender, UnlitMaterialsKeepTheirColour) {
+  REQUIRE_GL();
+  Model m = square_model();
+  m.materials[0].base_color = glm::vec4(0.4f, 0.2f, 0.8f, 1.0f);
+  const int want[3] = {102, 51, 204};
+  auto count = [&](const std::vector<std::uint8_t>& px) {
+    std::pair<int, int> opaque_exact{0, 0};
+    for (std::size_t i = 0; i < px.size(); i += 4) {
+      if (px[i + 3] < 255) continue;
+      ++opaque_exact.first;
+      bool exact = true;
+      for (int k = 0; k < 3; ++k) exact = exact && std::abs(px[i + k] - want[k]) <= 1;
+      opaque_exact.second += exact;
+    }
+    return opaque_exact;
+  };
+  for (bool unlit : {false, true}) {
+    m.materials[0].unlit = unlit;
+    for (bool relight : {false, true}) {
+      ImpostorConfig cfg = SquareScene::fresh();
+      cfg.relight = relight;
+      SquareScene scene(m, cfg);
+      ASSERT_TRUE(scene.ok());
+      for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) {
+        const auto [opaque, exact] = count(scene.frame(mode));
+        std::printf("%s, %s snapshots, %s: %d opaque pixels, %d of the base colour\n", unlit ? "unlit" : "lit",
+                    relight ? "relit" : "baked", mode == RenderMode::kGeometry ? "geometry" : "impostor", opaque, exact);
+        EXPECT_GT(opaque, 2000);
+        EXPECT_EQ(exact, unlit ? opaque : 0);
+      }
+      if (relight) {  // the light moved, the same snapshot drawn again
+        scene.renderer->set_light(glm::vec3(-0.8f, 0.3f, -0.5f));
+        DrawOptions again;
+        again.take_snapshots = false;
+        const auto [opaque, exact] = count(scene.frame(RenderMode::kImpostor, again));
+        EXPECT_GT(opaque, 2000);
+        EXPECT_EQ(exact, unlit ? opaque : 0);
+      }
+    }
   }
 }
 

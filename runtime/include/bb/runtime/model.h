@@ -85,6 +85,7 @@ struct Material {
   float alpha_cutoff = 0.5f;   // used when alpha_mask
   bool alpha_mask = false;
   bool vertex_colors = false;  // its primitives' vertices carry colours (Vertex::color)
+  bool unlit = false;          // KHR_materials_unlit: drawn in its base colour, with no light
 };
 
 struct Texture {
