@@ -362,6 +362,16 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   report["model"] = model_paths.front();
   if (model_paths.size() > 1) report["models"] = model_paths;
   if (!notes.empty()) report["model_notes"] = notes;
+  // The clip each model walks and the speed its rate is matched to (BakedClip::ground_speed).
+  ordered_json walks = ordered_json::array();
+  for (std::size_t k = 0; k < result->walks.size() && k < model_paths.size(); ++k) {
+    const FlowResult::Walk& w = result->walks[k];
+    walks.push_back({{"model", model_paths[k]}, {"clip", w.clip}, {"speed", w.speed}, {"matched", w.matched}});
+    if (!a.json && w.matched == "none")
+      std::fprintf(stderr, "flow: note: %s: clip \"%s\" does not walk; played at its own rate\n", model_paths[k].c_str(),
+                   w.clip.c_str());
+  }
+  report["walks"] = walks;
   report["device"] = device;
   std::vector<std::string> written;
   // Sample frames of an earlier run into the same folder (another --frames keeps other frames)

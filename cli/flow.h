@@ -74,7 +74,9 @@ struct FlowSettings {
   int short_lived = -1;
   unsigned planner_threads = 0;             // ImpostorConfig::planner_threads (0: every hardware thread)
   int clip = -1;                 // -1: a clip named like "walk" if any, else 0
-  float clip_speed_mps = 0;      // speed the clip walks at; 0: from the clip name "..._1.20mps" or none
+  // Speed the clip walks at, model units per second; 0: from the clip name "..._1.20mps" (metres,
+  // glTF's unit), else measured (BakedClip::ground_speed), else none (played at its own rate).
+  float clip_speed_mps = 0;
   std::vector<int> keep_frames;  // measured frame indices whose images are returned
 };
 
@@ -128,6 +130,14 @@ struct FlowResult {
   // With part cards: the name of each body part's bone (the model's automatic decomposition).
   std::vector<std::string> parts;
   double part_cards = 0;  // mean cards drawn per impostor frame
+  // Per model: the clip its humans walk, the speed it walks at (model units per second, 0: none)
+  // and where that came from ("name", "measured", "given" or "none": played at its own rate).
+  struct Walk {
+    std::string clip;
+    double speed = 0;
+    std::string matched;
+  };
+  std::vector<Walk> walks;
   std::vector<FlowFrameImages> images;
 };
 

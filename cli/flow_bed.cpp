@@ -30,6 +30,8 @@ int choose_clip(const runtime::Model& model, int wanted) {
     std::transform(n.begin(), n.end(), n.begin(), [](unsigned char c) { return std::tolower(c); });
     if (n.find("walk") != std::string::npos) return static_cast<int>(i);
   }
+  for (size_t i = 0; i < model.clips.size(); ++i)  // else the first clip that walks (BakedClip::ground_speed)
+    if (model.baked_clips()[i].ground_speed > 0.0f) return static_cast<int>(i);
   return 0;
 }
 
@@ -157,7 +159,10 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
 
   // The crowd: concentric circles, a few humans per circle, speeds 0.6 .. 1.8 m/s, alternate
   // directions. Circles are spaced so that neighbours do not collide.
-  // Each model walks its own walk clip. A model whose height is not within a factor of 2 of the
+  // Each model walks its own walk clip, played at the rate that matches its walker's speed: the
+  // speed its name gives ("walk_1.20mps"), else the one measured from its poses
+  // (BakedClip::ground_speed); a clip that does not walk plays at its own rate.
+  // A model whose height is not within a factor of 2 of the
   // first model's (another unit: the Fox is in centimetres) is scaled to the first one's height;
   // the others keep theirs (our body's variants differ in height on purpose). The scene is scaled
   // to the largest character.
@@ -168,9 +173,23 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   for (int m = 0; m < nm; ++m) {
     const Model& mm = *models[m];
     clips[m] = mm.clips.empty() ? 0 : choose_clip(mm, s.clip);
-    clip_speeds[m] = s.clip_speed_mps > 0 ? s.clip_speed_mps
-                                          : (mm.clips.empty() ? 0.0f : speed_from_name(mm.clips[clips[m]].name));
     const float h = std::max(mm.bounds_max.y - mm.bounds_min.y, 1e-6f);
+    FlowResult::Walk walk;
+    walk.clip = mm.clips.empty() ? "" : mm.clips[clips[m]].name;
+    if (s.clip_speed_mps > 0) {
+      clip_speeds[m] = s.clip_speed_mps;
+      walk.matched = "given";
+    } else if (const float named = mm.clips.empty() ? 0.0f : speed_from_name(walk.clip); named > 0) {
+      clip_speeds[m] = named;  // glTF's unit is the metre
+      walk.matched = "name";
+    } else if (const float measured = mm.baked_clips()[static_cast<std::size_t>(clips[m])].ground_speed; measured > 0) {
+      clip_speeds[m] = measured;
+      walk.matched = "measured";
+    } else {
+      walk.matched = "none";
+    }
+    walk.speed = clip_speeds[m];
+    out.walks.push_back(walk);
     if (h > 2.0f * first_height || h < 0.5f * first_height) scales[m] = first_height / h;
     size = std::max(size, mm.radius * 2.0f * scales[m]);
     model_height = std::max(model_height, h * scales[m]);
@@ -195,7 +214,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
     c.phase = 0.7f * i;
     c.scale = scales[m];
     // The clip's speed (in the model's units) scales with the character.
-    c.speed = s.hold_poses ? 0.0f : clip_speeds[m] > 0 ? w.speed / (clip_speeds[m] * unit * scales[m]) : 1.0f;
+    c.speed = s.hold_poses ? 0.0f : clip_speeds[m] > 0 ? w.speed / (clip_speeds[m] * scales[m]) : 1.0f;
     slot.emplace_back(m, crowds[m].add(c));
   }
   float outer = walkers.empty() ? 2.0f : (2.0f + 1.6f * (rings - 1)) * unit + size;

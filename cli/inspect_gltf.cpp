@@ -21,6 +21,15 @@
 namespace bb::cli {
 
 namespace {
+// "1.23 units/s (0.70 heights/s)"
+std::string fmt_speed(float v, double height) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "%.3g units/s (%.2f heights/s)", v, height > 0 ? v / height : 0.0);
+  return buf;
+}
+}  // namespace
+
+namespace {
 
 struct Welded {
   std::vector<glm::vec3> positions;
@@ -102,7 +111,9 @@ int inspect_gltf(const std::string& path, bool as_json) {
     lods.push_back(j);
   }
   nlohmann::ordered_json anims = nlohmann::ordered_json::array();
-  for (const auto& c : m.clips) anims.push_back({{"name", c.name}, {"duration_s", c.duration}});
+  for (std::size_t k = 0; k < m.clips.size(); ++k)
+    anims.push_back({{"name", m.clips[k].name}, {"duration_s", m.clips[k].duration},
+                     {"ground_speed", m.baked_clips()[k].ground_speed}});  // model units per second, 0: does not walk
   const int joints = skin.skin_joints;
   nlohmann::ordered_json j;
   j["kind"] = "gltf";
@@ -136,7 +147,11 @@ int inspect_gltf(const std::string& path, bool as_json) {
                 l["vertices"].get<size_t>(), l["screen_coverage"].get<double>(), l["closed"].get<bool>() ? "yes" : "no",
                 l["manifold"].get<bool>() ? "yes" : "no", l["self_intersections"].get<size_t>(),
                 l["hausdorff_rel"].get<double>(), l["textured"].get<bool>() ? "yes" : "no");
-  for (const auto& c : m.clips) std::printf("animation %s: %.3f s\n", c.name.c_str(), c.duration);
+  for (std::size_t k = 0; k < m.clips.size(); ++k) {
+    const float v = m.baked_clips()[k].ground_speed;
+    std::printf("animation %s: %.3f s, %s\n", m.clips[k].name.c_str(), m.clips[k].duration,
+                v > 0.0f ? ("walks at " + fmt_speed(v, height)).c_str() : "does not walk");
+  }
   std::printf("skin: at most %d influences per vertex, weights %s\n", skin.max_influences,
               skin.weights_normalized ? "normalized" : "NOT normalized");
   if (skin.vertices_over_four > 0)

@@ -369,6 +369,13 @@ TEST(FlowCli, DefaultCrowdIsTheBodyAndItsVariants) {
   EXPECT_EQ(j["humans"], 4);
   EXPECT_DOUBLE_EQ(j["refresh_fraction"].get<double>(), 1.0);
   EXPECT_GT(j["psnr_db"].get<double>(), 20);  // fresh impostors of both bodies
+  // Each body walks its walk clip at the speed the clip's name gives.
+  ASSERT_EQ(j["walks"].size(), 2u);
+  for (const auto& w : j["walks"]) {
+    EXPECT_EQ(w["clip"], "walk_1.20mps");
+    EXPECT_EQ(w["matched"], "name");
+    EXPECT_NEAR(w["speed"].get<double>(), 1.2, 1e-6);
+  }
 
   // A crowd of two external models in other units: each drawn, at one height.
   const std::string cesium = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
@@ -381,6 +388,15 @@ TEST(FlowCli, DefaultCrowdIsTheBodyAndItsVariants) {
   ASSERT_EQ(k["models"].size(), 2u);
   EXPECT_GT(k["psnr_db"].get<double>(), 10);
   EXPECT_GT(k["geometry_triangles_per_frame"].get<double>(), 0);
+  // Their clips carry no speed in their names: measured from the poses (the Fox walks "Walk", not its
+  // first clip "Survey").
+  ASSERT_EQ(k["walks"].size(), 2u);
+  EXPECT_EQ(k["walks"][0]["clip"], "clip0");
+  EXPECT_EQ(k["walks"][1]["clip"], "Walk");
+  for (const auto& w : k["walks"]) {
+    EXPECT_EQ(w["matched"], "measured");
+    EXPECT_GT(w["speed"].get<double>(), 0);
+  }
 }
 
 // --targets: the targets with the user's own settings, each from a run of its own, and

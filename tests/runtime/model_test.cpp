@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
 
 #include "bb/runtime/animation.h"
@@ -218,6 +219,84 @@ TEST(LoadModel, FoxClipsAndUnindexedMesh) {
   EXPECT_EQ(m.lods[0].indices.size(), m.lods[0].vertices.size());
   for (const Vertex& v : m.lods[0].vertices) EXPECT_NEAR(glm::length(v.normal), 1.0f, 1e-4f);
   EXPECT_EQ(m.textures.size(), 1u);
+}
+
+// BakedClip::ground_speed on a hand-made walk: a root 1 unit up and two feet under it, each sliding
+// back on the ground by `slide` units in half a second (stance), then lifted 0.2 units and brought
+// forward (swing), the other foot half a cycle later. The body moves over its supporting foot at
+// 2 * slide units per second. The same feet stepping in place (no slide) do not walk, nor do feet
+// that stay 0.5 units above the pose's lowest point (a vertex on the root, 1.5 units below it).
+TEST(GroundSpeed, HandMadeWalk) {
+  auto walker = [](float slide, bool ground_below_feet) {
+    Model m;
+    m.nodes = {Node{"root", -1, {glm::vec3(0, 1, 0), glm::quat(1, 0, 0, 0), glm::vec3(1)}},
+               Node{"foot_l", 0, {glm::vec3(0.2f, -1, 0), glm::quat(1, 0, 0, 0), glm::vec3(1)}},
+               Node{"foot_r", 0, {glm::vec3(-0.2f, -1, 0), glm::quat(1, 0, 0, 0), glm::vec3(1)}}};
+    m.palette = {PaletteEntry{0, glm::translate(glm::mat4(1), glm::vec3(0, -1, 0))},
+                 PaletteEntry{1, glm::translate(glm::mat4(1), glm::vec3(-0.2f, 0, 0))},
+                 PaletteEntry{2, glm::translate(glm::mat4(1), glm::vec3(0.2f, 0, 0))}};
+    MeshLod lod;
+    const glm::vec3 at[4] = {{0, 1, 0}, {0.2f, 0, 0}, {-0.2f, 0, 0}, {0, -0.5f, 0}};
+    for (int j = 0; j < (ground_below_feet ? 4 : 3); ++j) {
+      Vertex v;
+      v.position = at[j];
+      v.joints = glm::u16vec4(j == 3 ? 0 : j, 0, 0, 0);
+      lod.vertices.push_back(v);
+    }
+    lod.indices = {0, 1, 2};
+    lod.primitives = {Primitive{0, 3, 0}};
+    m.lods = {lod};
+    m.materials = {Material{}};
+    Clip clip;
+    clip.name = "walk";
+    clip.duration = 1.0f;
+    for (int side = 0; side < 2; ++side) {
+      Channel ch;
+      ch.node = 1 + side;
+      ch.path = ChannelPath::kTranslation;
+      const float x = side == 0 ? 0.2f : -0.2f, h = 0.5f * slide;
+      // Keys at quarter cycles: stance from phase 0 to 0.5 (left) or 0.5 to 1 (right).
+      const glm::vec4 keys[4] = {{x, -1, h, 0}, {x, -1, 0, 0}, {x, -1, -h, 0}, {x, -0.8f, 0, 0}};
+      for (int k = 0; k <= 4; ++k) {
+        ch.times.push_back(0.25f * static_cast<float>(k));
+        ch.values.push_back(keys[(k + 2 * side) % 4]);
+      }
+      clip.channels.push_back(ch);
+    }
+    m.clips = {clip};
+    m.bake();
+    return m.baked_clips()[0].ground_speed;
+  };
+  EXPECT_NEAR(walker(0.5f, false), 1.0f, 0.01f);
+  EXPECT_NEAR(walker(1.0f, false), 2.0f, 0.02f);
+  EXPECT_EQ(walker(0.0f, false), 0.0f);  // stepping in place
+  EXPECT_EQ(walker(0.5f, true), 0.0f);   // no foot near the ground
+}
+
+// On the shared models: the walks walk, the Fox's run faster than its walk; the Fox's survey, the
+// bending cylinder and the strip do not.
+TEST(GroundSpeed, SharedModels) {
+  for (const char* name : {"CesiumMan.glb", "Fox.glb", "RiggedSimple.gltf", "SimpleSkin.gltf"})
+    REQUIRE_SHARED(gltf_dir() + "/" + name);
+  auto speeds = [](const char* name) {
+    auto m = load_model(gltf_dir() + "/" + name);
+    EXPECT_TRUE(m.ok()) << m.error().message();
+    std::vector<float> v;
+    if (m.ok())
+      for (const BakedClip& bc : m->baked_clips()) v.push_back(bc.ground_speed / (m->bounds_max.y - m->bounds_min.y));
+    return v;
+  };
+  const auto cesium = speeds("CesiumMan.glb"), fox = speeds("Fox.glb");
+  ASSERT_EQ(cesium.size(), 1u);
+  ASSERT_EQ(fox.size(), 3u);
+  // Heights per second: a human walks at 0.4 to 1 (0.7 to 1.75 m/s), measured 0.52.
+  EXPECT_GT(cesium[0], 0.4f);
+  EXPECT_LT(cesium[0], 1.0f);
+  EXPECT_EQ(fox[0], 0.0f);     // Survey
+  EXPECT_GT(fox[1], 0.5f);     // Walk: measured 1.25
+  EXPECT_GT(fox[2], 1.4f * fox[1]);  // Run: measured 2.23
+  EXPECT_EQ(speeds("RiggedSimple.gltf"), std::vector<float>{0.0f});
+  EXPECT_EQ(speeds("SimpleSkin.gltf"), std::vector<float>{0.0f});
 }
 
 TEST(LoadModel, PosturePairsOverride) {

@@ -133,6 +133,13 @@ struct BakedClip {
   // Horizontal (x, z) travel of the skeleton's root from its rest place, per frame (metres):
   // clips with root motion carry Ta (and the impostor) along.
   std::vector<glm::vec2> root_offset;
+  // The speed the clip walks at (model units per second), measured from its poses: how fast the
+  // body moves horizontally over its supporting foot (the lowest end joint, where it is within 15 %
+  // of the height of the pose's lowest point), the median over the frames. An in-place walk's foot
+  // slides back at that speed, a clip with root motion moves the body over a foot that stays put.
+  // 0 where the clip does not walk (no supporting foot in a quarter of the frames, or the body
+  // moving over it at under 5 % of the height per second).
+  float ground_speed = 0.0f;
 };
 
 // A body part for impostor part cards (ImpostorConfig::part_cards, the paper's section 7 item 2):
