@@ -241,6 +241,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   s.snapshot_lod_from_screen = a.snapshot_lod == "screen";
   s.perspective_snapshots = a.snapshot_camera == "perspective";
   s.hold_poses = a.hold_poses;
+  s.clip = a.clip;
   s.part_cards = a.impostor_parts;
   if (a.refresh_budget < 0) return fail("--refresh-budget: expected a count >= 0 (got " + std::to_string(a.refresh_budget) + ")");
   s.refresh_budget = a.refresh_budget;
@@ -339,6 +340,12 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   for (const std::string& path : model_paths) {
     auto m = runtime::load_model(path);
     if (!m) return fail(m.error().message());
+    if (!a.clip.empty() && m->find_clip(a.clip) < 0) {
+      std::string names;
+      for (const auto& c : m->clips) names += (names.empty() ? "\"" : ", \"") + c.name + "\"";
+      return fail(path + ": --clip: no clip named \"" + a.clip + "\" (" +
+                  (names.empty() ? std::string("it has none") : "it has " + names) + ")");
+    }
     for (const std::string& n : model_notes(*m)) {
       if (!a.json) std::fprintf(stderr, "flow: note: %s: %s\n", path.c_str(), n.c_str());
       notes.push_back(path + ": " + n);
@@ -633,6 +640,10 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--snapshot-camera", a->snapshot_camera, "Snapshot camera: perspective (from the eye) or orthographic")
       ->capture_default_str();
   cmd->add_flag("--hold-poses", a->hold_poses, "Every human keeps one pose while walking (isolates the pose lag)");
+  cmd->add_option("--clip", a->clip,
+                  "The clip every model plays, by name (default: the first named like \"walk\", else the first that "
+                  "walks); its rate matches the walker's speed: from a name such as walk_1.20mps, else measured from "
+                  "its poses, else its own");
   cmd->add_flag("--impostor-parts", a->impostor_parts,
                 "One impostor card per body part, carried by its bone between snapshots (less pose and view lag)");
   cmd->add_option("--limb-cards", a->limb_cards,

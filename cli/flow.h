@@ -73,7 +73,7 @@ struct FlowSettings {
   // snapshot costs what drawing the character does), 0 off (every refresh a snapshot), 1 on.
   int short_lived = -1;
   unsigned planner_threads = 0;             // ImpostorConfig::planner_threads (0: every hardware thread)
-  int clip = -1;                 // -1: a clip named like "walk" if any, else 0
+  std::string clip;              // the clip every model walks; empty: the first named like "walk", else the first that walks, else 0
   // Speed the clip walks at, model units per second; 0: from the clip name "..._1.20mps" (metres,
   // glTF's unit), else measured (BakedClip::ground_speed), else none (played at its own rate).
   float clip_speed_mps = 0;
@@ -166,6 +166,7 @@ struct FlowArgs {
   float texels_per_pixel = 1.0f;  // see FlowSettings
   std::string impostor_edges = "auto", snapshot_lod = "screen", snapshot_camera = "perspective";
   bool hold_poses = false;
+  std::string clip;  // --clip: every model's clip by name (empty: its walk)
   bool impostor_parts = false;
   int refresh_budget = 0;
   std::string limb_cards = "fixed";

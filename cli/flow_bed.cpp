@@ -23,8 +23,8 @@ struct Walker {
   int dir;
 };
 
-int choose_clip(const runtime::Model& model, int wanted) {
-  if (wanted >= 0) return wanted < static_cast<int>(model.clips.size()) ? wanted : 0;
+int choose_clip(const runtime::Model& model, const std::string& wanted) {
+  if (!wanted.empty()) return std::max(0, model.find_clip(wanted));  // the CLI checked that it exists
   for (size_t i = 0; i < model.clips.size(); ++i) {
     std::string n = model.clips[i].name;
     std::transform(n.begin(), n.end(), n.begin(), [](unsigned char c) { return std::tolower(c); });

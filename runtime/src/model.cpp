@@ -108,7 +108,7 @@ void Model::bake(float rate) {
   std::vector<int> ends;
   for (const auto& e : palette)
     if (!has_child[e.node] && std::find(ends.begin(), ends.end(), e.node) == ends.end()) ends.push_back(e.node);
-  // Per clip and frame: the palette joints' mean horizontal place, then each end joint's place.
+  // Per clip and frame: the skeleton root's place, then each end joint's place (model space).
   std::vector<std::vector<glm::vec3>> tracks;
   const int clip_count = std::max<int>(1, static_cast<int>(clips.size()));
   for (int ci = 0; ci < clip_count; ++ci) {

@@ -399,6 +399,29 @@ TEST(FlowCli, DefaultCrowdIsTheBodyAndItsVariants) {
   }
 }
 
+// --clip picks every model's clip by name, its rate matched to the walkers' speed as measured from
+// its poses; a clip a model does not have is an error naming the file and the clips it has.
+TEST(FlowCli, ClipChosenByName) {
+  const std::string fox = std::string(BB_SHARED_DATA_DIR) + "/gltf/Fox.glb";
+  if (!fs::exists(fox)) GTEST_SKIP() << "../shared/data is absent";
+  const fs::path d = fs::temp_directory_path() / "bb_flow_cli_clip";
+  fs::remove_all(d);
+  Out o = run("flow --model " + fox + " --clip Run --humans 4 --frames 2 --size 320x256 --json -o " + d.string());
+  if (o.text.find("EGL") != std::string::npos && o.status != 0) GTEST_SKIP() << "no headless OpenGL: " << o.text;
+  ASSERT_EQ(o.status, 0) << o.text;
+  auto j = nlohmann::json::parse(last_json_line(o.text));
+  ASSERT_EQ(j["walks"].size(), 1u);
+  EXPECT_EQ(j["walks"][0]["clip"], "Run");
+  EXPECT_EQ(j["walks"][0]["matched"], "measured");
+  EXPECT_GT(j["walks"][0]["speed"].get<double>(), 100);  // units (cm) per second: measured 177
+
+  Out bad = run("flow --model " + fox + " --clip Gallop --frames 1 -o " + d.string());
+  EXPECT_NE(bad.status, 0);
+  EXPECT_NE(bad.text.find(fox + ": --clip: no clip named \"Gallop\" (it has \"Survey\", \"Walk\", \"Run\")"),
+            std::string::npos)
+      << bad.text;
+}
+
 // --targets: the targets with the user's own settings, each from a run of its own, and
 // the table agrees with those runs.
 TEST(FlowCli, TargetsAreCheckedWithTheGivenSettings) {
