@@ -338,7 +338,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   std::vector<runtime::Model> loaded;
   ordered_json notes = ordered_json::array();  // what the runtime does not draw as a file says
   for (const std::string& path : model_paths) {
-    auto m = runtime::load_model(path);
+    runtime::LoadOptions load;
+    load.lod_levels = a.lods;
+    auto m = runtime::load_model(path, load);
     if (!m) return fail(m.error().message());
     if (!a.clip.empty() && m->find_clip(a.clip) < 0) {
       std::string names;
@@ -379,6 +381,16 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
                    w.clip.c_str());
   }
   report["walks"] = walks;
+  // Each model's levels of detail, and how many of them were made at load (--lods).
+  ordered_json levels = ordered_json::array();
+  for (std::size_t k = 0; k < loaded.size() && k < model_paths.size(); ++k) {
+    const auto& lods = loaded[k].lods;
+    const auto made = std::count_if(lods.begin(), lods.end(), [](const runtime::MeshLod& l) { return l.generated_error > 0.0f; });
+    ordered_json tris = ordered_json::array();
+    for (const auto& l : lods) tris.push_back(l.triangle_count());
+    levels.push_back({{"model", model_paths[k]}, {"triangles", tris}, {"made_at_load", made}});
+  }
+  report["lods"] = levels;
   report["device"] = device;
   std::vector<std::string> written;
   // Sample frames of an earlier run into the same folder (another --frames keeps other frames)
@@ -640,6 +652,11 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--snapshot-camera", a->snapshot_camera, "Snapshot camera: perspective (from the eye) or orthographic")
       ->capture_default_str();
   cmd->add_flag("--hold-poses", a->hold_poses, "Every human keeps one pose while walking (isolates the pose lag)");
+  cmd->add_option("--lods", a->lods,
+                  "A model file with one level: up to N coarser levels made at load for both paths, each used where "
+                  "its error shows as under a pixel of a 1080-pixel-high view (0: none: the file's level only)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 8));
   cmd->add_option("--clip", a->clip,
                   "The clip every model plays, by name (default: the first named like \"walk\", else the first that "
                   "walks); its rate matches the walker's speed: from a name such as walk_1.20mps, else measured from "

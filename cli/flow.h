@@ -167,6 +167,7 @@ struct FlowArgs {
   std::string impostor_edges = "auto", snapshot_lod = "screen", snapshot_camera = "perspective";
   bool hold_poses = false;
   std::string clip;  // --clip: every model's clip by name (empty: its walk)
+  int lods = 3;      // --lods: LoadOptions::lod_levels for every model
   bool impostor_parts = false;
   int refresh_budget = 0;
   std::string limb_cards = "fixed";

@@ -125,7 +125,7 @@ int run_inspect_body(const std::string& path, bool as_json, const std::string& p
   return 0;
 }
 
-int inspect_gltf(const std::string& path, bool as_json);  // inspect_gltf.cpp
+int inspect_gltf(const std::string& path, bool as_json, int lod_levels);  // inspect_gltf.cpp
 
 namespace {
 void add_inspect_command(CLI::App& app, int* status) {
@@ -134,15 +134,21 @@ void add_inspect_command(CLI::App& app, int* status) {
   auto as_json = std::make_shared<bool>(false);
   auto preview_path = std::make_shared<std::string>();
   auto posture = std::make_shared<std::string>("bind");
+  auto lod_levels = std::make_shared<int>(0);
   cmd->add_option("FILE", *file, "BODY.json, FILE.glb or FILE.gltf; 'default' is the built-in body")
       ->capture_default_str();
   cmd->add_flag("--json", *as_json, "Print one JSON object on stdout");
   cmd->add_option("--preview", *preview_path, "Bodies: write a ray-cast PNG of the skin (front and side)");
   cmd->add_option("--posture", *posture, "Bodies: posture of the preview (neutral, bind, max_extent)")
       ->capture_default_str();
+  cmd->add_option("--lods", *lod_levels,
+                  "glTF with one level: also describe the N coarser levels the runtime makes at load "
+                  "(flow and render make 3 by default; see their --lods)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 8));
   cmd->callback([=] {
     if (has_suffix(*file, ".glb") || has_suffix(*file, ".gltf"))
-      *status = inspect_gltf(*file, *as_json);
+      *status = inspect_gltf(*file, *as_json, *lod_levels);
     else
       *status = run_inspect_body(*file, *as_json, *preview_path, *posture, "inspect");
   });

@@ -72,8 +72,10 @@ std::vector<glm::vec3> rest_positions(const runtime::Model& m) {
 
 }  // namespace
 
-int inspect_gltf(const std::string& path, bool as_json) {
-  auto model = runtime::load_model(path);
+int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
+  runtime::LoadOptions options;
+  options.lod_levels = lod_levels;
+  auto model = runtime::load_model(path, options);
   if (!model) {
     std::cerr << "bodybuilder inspect: " << model.error().message() << "\n";
     return 1;
@@ -99,6 +101,7 @@ int inspect_gltf(const std::string& path, bool as_json) {
     j["triangles"] = lod.triangle_count();
     j["vertices"] = lod.vertices.size();
     j["screen_coverage"] = lod.screen_coverage;
+    if (l > 0 && lod.generated_error > 0.0f) j["generated_error_rel"] = lod.generated_error / bind_height;  // made at load
     j["closed"] = check.closed;
     j["manifold"] = check.manifold;
     j["oriented"] = check.oriented;

@@ -26,6 +26,7 @@ struct RenderArgs {
   std::string input, output, mode = "geometry", size = "512x512", clip, snapshot = "perspective";
   float time = 0.0f, azimuth = 0.0f, elevation = 10.0f, distance = 0.0f;
   int lod = -1;  // -1: chosen by screen size
+  int lods = 3;  // LoadOptions::lod_levels
   bool json = false;
 };
 
@@ -53,7 +54,9 @@ int run_render(const RenderArgs& a) {
   o.elevation_deg = a.elevation;
   o.distance = a.distance;
   auto t0 = clock::now();
-  auto model = runtime::load_model(a.input);
+  runtime::LoadOptions load;
+  load.lod_levels = a.lods;
+  auto model = runtime::load_model(a.input, load);
   if (!model) {
     std::cerr << "bodybuilder render: " << model.error().message() << "\n";
     return 1;
@@ -62,8 +65,8 @@ int run_render(const RenderArgs& a) {
   for (const std::string& n : model_notes(*model)) std::cerr << "bodybuilder render: note: " << n << "\n";
   if (a.lod >= 0) {
     if (a.lod >= static_cast<int>(model->lods.size())) {
-      std::cerr << "bodybuilder render: " << a.input << ": --lod " << a.lod << ": the file has "
-                << model->lods.size() << " level" << (model->lods.size() == 1 ? "" : "s") << "\n";
+      std::cerr << "bodybuilder render: " << a.input << ": --lod " << a.lod << ": the model has "
+                << model->lods.size() << " level" << (model->lods.size() == 1 ? "" : "s") << " (see --lods)\n";
       return 1;
     }
     model->lods = {model->lods[a.lod]};  // that level at every size
@@ -128,6 +131,11 @@ void add_render_command(CLI::App& app, int* status) {
   cmd->add_option("--size", a->size, "Image size WxH in pixels")->capture_default_str();
   cmd->add_option("--clip", a->clip, "Clip name (default: the first)");
   cmd->add_option("--lod", a->lod, "Draw this level of detail (default: chosen by screen size)")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--lods", a->lods,
+                  "A file with one level: up to N coarser levels made at load, each used where its error shows as "
+                  "under a pixel of a 1080-pixel-high view (0: none)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 8));
   cmd->add_option("--snapshot", a->snapshot, "Impostor snapshot projection: perspective (from the eye) or ortho (the paper's)")
       ->capture_default_str();
   cmd->add_flag("--json", a->json, "Print one JSON object with the figures");

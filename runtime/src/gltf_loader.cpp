@@ -1026,6 +1026,7 @@ Result<Model> load_model(const std::string& path, const LoadOptions& options) {
   } catch (const std::exception& e) {
     return Error{path, "", std::string("cannot build the model: ") + e.what()};
   }
+  add_generated_lods(model, options);
   model.bake(options.bake_rate);
   return model;
 }

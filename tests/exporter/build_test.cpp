@@ -177,7 +177,7 @@ TEST(Build, RenderDrawsAChosenLevel) {
   EXPECT_GT(j["covered_pixels"].get<long>(), 500) << out;
   EXPECT_TRUE(std::filesystem::exists(png));
   out = run(std::string(BB_BIN_DIR) + "/bodybuilder render " + built_glb() + " --lod 9 -o " + png + " 2>&1; echo status=$?");
-  EXPECT_NE(out.find(built_glb() + ": --lod 9: the file has 4 levels"), std::string::npos) << out;
+  EXPECT_NE(out.find(built_glb() + ": --lod 9: the model has 4 levels"), std::string::npos) << out;
   EXPECT_NE(out.find("status=1"), std::string::npos) << out;
 }
 

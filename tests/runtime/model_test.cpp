@@ -299,6 +299,88 @@ TEST(GroundSpeed, SharedModels) {
   EXPECT_EQ(speeds("SimpleSkin.gltf"), std::vector<float>{0.0f});
 }
 
+// LoadOptions::lod_levels on a flat 16 x 16 grid of quads (a model with one level): the simplifier takes
+// the inside away without error and keeps the border, so every level it makes lies in the grid's plane,
+// with about half the triangles of the one before and the whole border; with no error, the finer level
+// gives way at once (its screen coverage the bound of 1, or the finer one's).
+TEST(GeneratedLods, AFlatGridLosesNothing) {
+  Model m;
+  m.nodes = {Node{"root", -1, {}}};
+  m.palette = {PaletteEntry{0, glm::mat4(1)}};
+  MeshLod lod;
+  const int n = 16;
+  for (int y = 0; y <= n; ++y)
+    for (int x = 0; x <= n; ++x) {
+      Vertex v;
+      v.position = {x / float(n), y / float(n), 0.0f};
+      v.normal = {0, 0, 1};
+      lod.vertices.push_back(v);
+    }
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) {
+      const std::uint32_t a = y * (n + 1) + x, b = a + 1, c = a + n + 1, d = c + 1;
+      lod.indices.insert(lod.indices.end(), {a, b, d, a, d, c});
+    }
+  lod.primitives = {Primitive{0, static_cast<std::uint32_t>(lod.indices.size()), 0}};
+  m.lods = {lod};
+  m.materials = {Material{}};
+  LoadOptions none;
+  Model copy = m;
+  EXPECT_EQ(add_generated_lods(copy, none), 0);  // lod_levels 0: none
+  LoadOptions o;
+  o.lod_levels = 3;
+  ASSERT_EQ(add_generated_lods(m, o), 3);
+  ASSERT_EQ(m.lods.size(), 4u);
+  for (std::size_t l = 1; l < m.lods.size(); ++l) {
+    const MeshLod& g = m.lods[l];
+    EXPECT_LE(g.triangle_count() * 5, m.lods[l - 1].triangle_count() * 4);
+    EXPECT_GE(g.triangle_count() * 5, m.lods[l - 1].triangle_count() * 2);  // about half
+    EXPECT_LT(g.generated_error, 1e-6f);
+    int border = 0;
+    for (const Vertex& v : g.vertices) {
+      EXPECT_EQ(v.position.z, 0.0f);
+      border += v.position.x == 0.0f || v.position.x == 1.0f || v.position.y == 0.0f || v.position.y == 1.0f;
+    }
+    EXPECT_EQ(border, 4 * n);  // the border kept whole
+    EXPECT_EQ(m.lods[l - 1].screen_coverage, 1.0f);
+  }
+  EXPECT_EQ(m.lods.back().screen_coverage, 0.0f);
+  EXPECT_EQ(add_generated_lods(m, o), 0);  // a model with levels keeps its own
+}
+
+// On CesiumMan (one level in the file): coarser levels, each at most 80 % of the one before, with
+// growing errors; each finer level gives way where the next one's error shows as one pixel of a
+// 1080-pixel-high view. The Fox's triangles share no vertices that weld (flat shading, seams): nothing
+// to collapse, so it keeps its one level.
+TEST(GeneratedLods, SharedModels) {
+  const std::string cesium = gltf_dir() + "/CesiumMan.glb", fox = gltf_dir() + "/Fox.glb";
+  REQUIRE_SHARED(cesium);
+  LoadOptions o;
+  o.lod_levels = 3;
+  auto m = load_model(cesium, o);
+  ASSERT_TRUE(m.ok()) << m.error().message();
+  ASSERT_GE(m->lods.size(), 3u);
+  float lo = 1e30f, hi = -1e30f;
+  for (const Vertex& v : m->lods[0].vertices) lo = std::min(lo, v.position.y), hi = std::max(hi, v.position.y);
+  for (std::size_t l = 1; l < m->lods.size(); ++l) {
+    const MeshLod &g = m->lods[l], &finer = m->lods[l - 1];
+    std::printf("CesiumMan level %zu: %zu triangles, error %.3f %% of the height, used below %.3f of the view\n", l,
+                g.triangle_count(), 100.0 * g.generated_error / (hi - lo), finer.screen_coverage);
+    EXPECT_LE(g.triangle_count() * 5, finer.triangle_count() * 4);
+    EXPECT_GT(g.generated_error, finer.generated_error);
+    EXPECT_LE(finer.screen_coverage * g.generated_error / (hi - lo) * 1080.0f, 1.0f + 1e-4f);
+    EXPECT_EQ(g.primitives.size(), 1u);
+    for (std::uint32_t i : g.indices) ASSERT_LT(i, g.vertices.size());
+  }
+  EXPECT_EQ(m->lods.back().screen_coverage, 0.0f);
+  EXPECT_EQ(m->part_indices(static_cast<int>(m->lods.size()) - 1).ranges.size(),
+            m->lods.back().primitives.size() * m->body_parts().size());  // parts made for every level
+  REQUIRE_SHARED(fox);
+  auto f = load_model(fox, o);
+  ASSERT_TRUE(f.ok());
+  EXPECT_EQ(f->lods.size(), 1u);
+}
+
 TEST(LoadModel, PosturePairsOverride) {
   std::string path = gltf_dir() + "/CesiumMan.glb";
   REQUIRE_SHARED(path);

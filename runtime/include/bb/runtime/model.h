@@ -63,6 +63,10 @@ struct MeshLod {
   // MSFT_screencoverage: use this level while the character's on-screen height divided by
   // the viewport height is >= this value (level 0: the finest). 0 for the last level.
   float screen_coverage = 0.0f;
+  // A level made at load (LoadOptions::lod_levels): its simplification error as meshoptimizer
+  // reports it (bind pose, model units: about the farthest a surface point moved); 0 for a level of
+  // the file.
+  float generated_error = 0.0f;
   std::size_t triangle_count() const { return indices.size() / 3; }
 };
 
@@ -265,6 +269,15 @@ class Model {
 
 struct LoadOptions {
   float bake_rate = 60.0f;  // frames per second for the baked clips
+  // Levels of detail for a file that has one level only (no MSFT_lod): up to this many coarser
+  // levels are made at load, each with about half the triangles of the one before (meshoptimizer's
+  // simplifier on the welded bind-pose mesh, each primitive on its own, borders kept), until a level
+  // would keep more than 80 % of the one before. Each is used where its error projects under
+  // lod_error_px pixels on a viewport lod_reference_height_px high (MeshLod::screen_coverage).
+  // 0: none (the file's levels only).
+  int lod_levels = 0;
+  float lod_error_px = 1.0f;
+  int lod_reference_height_px = 1080;
 };
 
 // Loads a .gltf or .glb file. The character is every mesh reachable from the default scene
@@ -273,5 +286,10 @@ struct LoadOptions {
 // levels; extras.MSFT_screencoverage gives their switch values. Errors name the file, a JSON
 // path and the reason; malformed files never crash.
 Result<Model> load_model(const std::string& path, const LoadOptions& options = {});
+
+// The coarser levels of LoadOptions::lod_levels (its three fields), added to a model that has one
+// level (none otherwise); returns how many. load_model does this before baking; on a model already
+// loaded, call Model::bake() afterwards (body parts and their triangles are made per level there).
+int add_generated_lods(Model& model, const LoadOptions& options);
 
 }  // namespace bb::runtime

@@ -1,0 +1,100 @@
+// Levels of detail made at load for a model whose file has one level (LoadOptions::lod_levels), so
+// that the geometry path can draw anyone's model as it draws ours: finer up close, coarser far away.
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <vector>
+
+#include <meshoptimizer.h>
+
+#include "bb/runtime/model.h"
+
+namespace bb::runtime {
+
+namespace {
+
+// One primitive of level 0, welded (bitwise-equal vertices shared: a non-indexed mesh such as the
+// Fox's becomes a connected one the simplifier can collapse) into its own vertex list.
+struct WeldedPrimitive {
+  std::vector<Vertex> vertices;
+  std::vector<std::uint32_t> indices;
+  int material = 0;
+};
+
+WeldedPrimitive weld(const MeshLod& lod, const Primitive& p) {
+  WeldedPrimitive w;
+  w.material = p.material;
+  std::vector<Vertex> corners(p.index_count);
+  for (std::uint32_t k = 0; k < p.index_count; ++k) corners[k] = lod.vertices[lod.indices[p.first_index + k]];
+  std::vector<unsigned int> remap(corners.size());
+  const std::size_t unique =
+      meshopt_generateVertexRemap(remap.data(), nullptr, corners.size(), corners.data(), corners.size(), sizeof(Vertex));
+  w.vertices.resize(unique);
+  meshopt_remapVertexBuffer(w.vertices.data(), corners.data(), corners.size(), sizeof(Vertex), remap.data());
+  w.indices.assign(remap.begin(), remap.end());
+  return w;
+}
+
+}  // namespace
+
+int add_generated_lods(Model& model, const LoadOptions& options) {
+  if (model.lods.size() != 1 || options.lod_levels <= 0 || !(options.lod_error_px > 0.0f) ||
+      options.lod_reference_height_px <= 0)
+    return 0;
+  const MeshLod& base = model.lods[0];
+  // Vertex and Primitive hold no padding: welding compares them bitwise.
+  static_assert(sizeof(Vertex) == 60, "Vertex must stay free of padding for meshopt_generateVertexRemap");
+  float lo = std::numeric_limits<float>::max(), hi = -lo;
+  for (const Vertex& v : base.vertices) lo = std::min(lo, v.position.y), hi = std::max(hi, v.position.y);
+  const float height = hi - lo;
+  if (!(height > 0.0f)) return 0;
+  std::vector<WeldedPrimitive> welded;
+  for (const Primitive& p : base.primitives) welded.push_back(weld(base, p));
+
+  int added = 0;
+  std::size_t previous = base.triangle_count();
+  for (int l = 1; l <= options.lod_levels; ++l) {
+    MeshLod lod;
+    float error = 0.0f;  // the level's: the largest of its primitives'
+    for (const WeldedPrimitive& w : welded) {
+      const std::size_t target = std::max<std::size_t>(3, (w.indices.size() / 3 >> l) * 3);
+      std::vector<std::uint32_t> out(w.indices.size());
+      float rel = 0.0f;
+      const std::size_t n = meshopt_simplify(out.data(), w.indices.data(), w.indices.size(), &w.vertices[0].position.x,
+                                             w.vertices.size(), sizeof(Vertex), target, 1.0f, meshopt_SimplifyLockBorder, &rel);
+      out.resize(n);
+      error = std::max(error, rel * meshopt_simplifyScale(&w.vertices[0].position.x, w.vertices.size(), sizeof(Vertex)));
+      if (n == 0) continue;  // simplified away (a primitive too small to keep at this level)
+      // The vertices this primitive's triangles still use, in first-use order.
+      std::vector<std::uint32_t> slot(w.vertices.size(), ~0u);
+      Primitive prim{static_cast<std::uint32_t>(lod.indices.size()), static_cast<std::uint32_t>(n), w.material};
+      for (std::uint32_t i : out) {
+        if (slot[i] == ~0u) {
+          slot[i] = static_cast<std::uint32_t>(lod.vertices.size());
+          lod.vertices.push_back(w.vertices[i]);
+        }
+        lod.indices.push_back(slot[i]);
+      }
+      lod.primitives.push_back(prim);
+    }
+    // Stop where the simplifier cannot take much more away (borders, seams, tiny primitives).
+    if (lod.indices.empty() || 5 * lod.triangle_count() > 4 * previous) break;
+    lod.generated_error = error;
+    previous = lod.triangle_count();
+    // The previous level is used while the character is tall enough on screen that this one's
+    // error would show as more than lod_error_px pixels.
+    MeshLod& finer = model.lods.back();
+    // (An error of 0: the coarser level is as good, used up to the finer one's own bound.)
+    const float bound = model.lods.size() > 1 ? model.lods[model.lods.size() - 2].screen_coverage : 1.0f;
+    finer.screen_coverage =
+        error > 0.0f ? std::min(bound, options.lod_error_px * height / (error * static_cast<float>(options.lod_reference_height_px)))
+                     : bound;
+    model.lods.push_back(std::move(lod));
+    ++added;
+  }
+  model.lods.back().screen_coverage = 0.0f;
+  return added;
+}
+
+}  // namespace bb::runtime
