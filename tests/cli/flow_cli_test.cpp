@@ -48,6 +48,13 @@ TEST(FlowCli, BothPathsOnAModelThatIsNotOurs) {
   EXPECT_LE(j["refresh_fraction"].get<double>(), 1);
   EXPECT_GT(j["psnr_db"].get<double>(), 5);  // the impostors show the same crowd
   EXPECT_GT(j["ssim"].get<double>(), 0.3);
+  // CesiumMan's file has one level: both paths get the coarser ones made at load (--lods 3).
+  ASSERT_EQ(j["lods"].size(), 1u);
+  const auto& tris = j["lods"][0]["triangles"];
+  ASSERT_GE(tris.size(), 3u);
+  EXPECT_EQ(tris[0], 4672);
+  EXPECT_EQ(j["lods"][0]["made_at_load"].get<std::size_t>(), tris.size() - 1);
+  for (std::size_t l = 1; l < tris.size(); ++l) EXPECT_LT(tris[l], tris[l - 1]);
   EXPECT_TRUE(fs::exists(d / "flow.json"));
   EXPECT_TRUE(fs::exists(d / "frame_0_impostors_vs_geometry.png"));
   EXPECT_FALSE(fs::exists(d / "frame_90_impostors_vs_geometry.png"));
