@@ -385,7 +385,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   ordered_json levels = ordered_json::array();
   for (std::size_t k = 0; k < loaded.size() && k < model_paths.size(); ++k) {
     const auto& lods = loaded[k].lods;
-    const auto made = std::count_if(lods.begin(), lods.end(), [](const runtime::MeshLod& l) { return l.generated_error > 0.0f; });
+    const auto made = std::count_if(lods.begin(), lods.end(), [](const runtime::MeshLod& l) { return l.made_at_load; });
     ordered_json tris = ordered_json::array();
     for (const auto& l : lods) tris.push_back(l.triangle_count());
     levels.push_back({{"model", model_paths[k]}, {"triangles", tris}, {"made_at_load", made}});

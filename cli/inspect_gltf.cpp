@@ -21,15 +21,13 @@
 namespace bb::cli {
 
 namespace {
+
 // "1.23 units/s (0.70 heights/s)"
 std::string fmt_speed(float v, double height) {
   char buf[96];
   std::snprintf(buf, sizeof buf, "%.3g units/s (%.2f heights/s)", v, height > 0 ? v / height : 0.0);
   return buf;
 }
-}  // namespace
-
-namespace {
 
 struct Welded {
   std::vector<glm::vec3> positions;
@@ -101,7 +99,7 @@ int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
     j["triangles"] = lod.triangle_count();
     j["vertices"] = lod.vertices.size();
     j["screen_coverage"] = lod.screen_coverage;
-    if (l > 0 && lod.generated_error > 0.0f) j["generated_error_rel"] = lod.generated_error / bind_height;  // made at load
+    if (lod.made_at_load) j["generated_error_rel"] = lod.generated_error / bind_height;
     j["closed"] = check.closed;
     j["manifold"] = check.manifold;
     j["oriented"] = check.oriented;

@@ -43,7 +43,7 @@ int add_generated_lods(Model& model, const LoadOptions& options) {
       options.lod_reference_height_px <= 0)
     return 0;
   const MeshLod& base = model.lods[0];
-  // Vertex and Primitive hold no padding: welding compares them bitwise.
+  // Welding compares vertices bitwise: Vertex must hold no padding.
   static_assert(sizeof(Vertex) == 60, "Vertex must stay free of padding for meshopt_generateVertexRemap");
   float lo = std::numeric_limits<float>::max(), hi = -lo;
   for (const Vertex& v : base.vertices) lo = std::min(lo, v.position.y), hi = std::max(hi, v.position.y);
@@ -80,6 +80,7 @@ int add_generated_lods(Model& model, const LoadOptions& options) {
     }
     // Stop where the simplifier cannot take much more away (borders, seams, tiny primitives).
     if (lod.indices.empty() || 5 * lod.triangle_count() > 4 * previous) break;
+    lod.made_at_load = true;
     lod.generated_error = error;
     previous = lod.triangle_count();
     // The previous level is used while the character is tall enough on screen that this one's

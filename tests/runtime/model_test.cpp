@@ -335,6 +335,7 @@ TEST(GeneratedLods, AFlatGridLosesNothing) {
     const MeshLod& g = m.lods[l];
     EXPECT_LE(g.triangle_count() * 5, m.lods[l - 1].triangle_count() * 4);
     EXPECT_GE(g.triangle_count() * 5, m.lods[l - 1].triangle_count() * 2);  // about half
+    EXPECT_TRUE(g.made_at_load);
     EXPECT_LT(g.generated_error, 1e-6f);
     int border = 0;
     for (const Vertex& v : g.vertices) {
@@ -345,6 +346,7 @@ TEST(GeneratedLods, AFlatGridLosesNothing) {
     EXPECT_EQ(m.lods[l - 1].screen_coverage, 1.0f);
   }
   EXPECT_EQ(m.lods.back().screen_coverage, 0.0f);
+  EXPECT_FALSE(m.lods[0].made_at_load);
   EXPECT_EQ(add_generated_lods(m, o), 0);  // a model with levels keeps its own
 }
 

@@ -63,9 +63,10 @@ struct MeshLod {
   // MSFT_screencoverage: use this level while the character's on-screen height divided by
   // the viewport height is >= this value (level 0: the finest). 0 for the last level.
   float screen_coverage = 0.0f;
-  // A level made at load (LoadOptions::lod_levels): its simplification error as meshoptimizer
-  // reports it (bind pose, model units: about the farthest a surface point moved); 0 for a level of
-  // the file.
+  // A level made at load (LoadOptions::lod_levels), not read from the file, and its simplification
+  // error as meshoptimizer reports it (bind pose, model units: about the farthest a surface point
+  // moved; 0 for the file's levels).
+  bool made_at_load = false;
   float generated_error = 0.0f;
   std::size_t triangle_count() const { return indices.size() / 3; }
 };
