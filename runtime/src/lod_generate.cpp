@@ -20,6 +20,7 @@ struct WeldedPrimitive {
   std::vector<Vertex> vertices;
   std::vector<std::uint32_t> indices;
   int material = 0;
+  float scale = 1.0f;  // meshopt_simplifyScale: the simplifier's relative errors times this are model units
 };
 
 WeldedPrimitive weld(const MeshLod& lod, const Primitive& p) {
@@ -33,6 +34,7 @@ WeldedPrimitive weld(const MeshLod& lod, const Primitive& p) {
   w.vertices.resize(unique);
   meshopt_remapVertexBuffer(w.vertices.data(), corners.data(), corners.size(), sizeof(Vertex), remap.data());
   w.indices.assign(remap.begin(), remap.end());
+  if (!w.vertices.empty()) w.scale = meshopt_simplifyScale(&w.vertices[0].position.x, w.vertices.size(), sizeof(Vertex));
   return w;
 }
 
@@ -58,13 +60,14 @@ int add_generated_lods(Model& model, const LoadOptions& options) {
     MeshLod lod;
     float error = 0.0f;  // the level's: the largest of its primitives'
     for (const WeldedPrimitive& w : welded) {
+      if (w.indices.empty()) continue;
       const std::size_t target = std::max<std::size_t>(3, (w.indices.size() / 3 >> l) * 3);
       std::vector<std::uint32_t> out(w.indices.size());
       float rel = 0.0f;
       const std::size_t n = meshopt_simplify(out.data(), w.indices.data(), w.indices.size(), &w.vertices[0].position.x,
                                              w.vertices.size(), sizeof(Vertex), target, 1.0f, meshopt_SimplifyLockBorder, &rel);
       out.resize(n);
-      error = std::max(error, rel * meshopt_simplifyScale(&w.vertices[0].position.x, w.vertices.size(), sizeof(Vertex)));
+      error = std::max(error, rel * w.scale);
       if (n == 0) continue;  // simplified away (a primitive too small to keep at this level)
       // The vertices this primitive's triangles still use, in first-use order.
       std::vector<std::uint32_t> slot(w.vertices.size(), ~0u);

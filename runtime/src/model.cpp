@@ -51,6 +51,19 @@ namespace {
 // Frames sampled to measure a clip (bounds, variability): every baked frame up to `cap`.
 int sample_stride(int frames, int cap) { return std::max(1, (frames + cap - 1) / cap); }
 
+// Per node: whether it is a skin joint (a palette node), and whether one of its children is. The
+// skeleton's end joints are the joints without a joint child.
+struct SkeletonFlags {
+  std::vector<bool> joint, parent_of_joint;
+};
+SkeletonFlags skeleton_flags(const Model& m) {
+  SkeletonFlags f{std::vector<bool>(m.nodes.size(), false), std::vector<bool>(m.nodes.size(), false)};
+  for (const auto& e : m.palette) f.joint[e.node] = true;
+  for (std::size_t i = 0; i < m.nodes.size(); ++i)
+    if (f.joint[i] && m.nodes[i].parent >= 0 && f.joint[m.nodes[i].parent]) f.parent_of_joint[m.nodes[i].parent] = true;
+  return f;
+}
+
 // BakedClip::ground_speed from `track`: per frame, the skeleton root's place, then the `ends` end
 // joints' places (model space); `height` the model's. Each frame's step of the body over its lowest
 // end joint, along the steps' mean direction; the median of those speeds. (Of the medians of their
@@ -91,23 +104,19 @@ void Model::bake(float rate) {
   std::vector<Transform> locals(nn);
   std::vector<glm::mat4> world(nn), pal(np);
   // The skeleton's root: the palette node with no palette ancestor (first one found).
-  std::vector<bool> in_palette(nn, false);
-  for (const auto& e : palette) in_palette[e.node] = true;
+  const SkeletonFlags skeleton = skeleton_flags(*this);
   int root = palette.empty() ? -1 : palette.front().node;
-  while (root >= 0 && nodes[root].parent >= 0 && in_palette[nodes[root].parent]) root = nodes[root].parent;
+  while (root >= 0 && nodes[root].parent >= 0 && skeleton.joint[nodes[root].parent]) root = nodes[root].parent;
   glm::vec2 rest_root(0.0f);
   if (root >= 0) {
     sample_clip(*this, -1, 0.0f, locals);
     world_matrices(*this, locals, world);
     rest_root = glm::vec2(world[root][3].x, world[root][3].z);
   }
-  // End joints (palette nodes without a palette child): the feet's candidates for ground_speed.
-  std::vector<bool> has_child(nn, false);
-  for (const auto& e : palette)
-    if (nodes[e.node].parent >= 0 && in_palette[nodes[e.node].parent]) has_child[nodes[e.node].parent] = true;
+  // End joints: the feet's candidates for ground_speed.
   std::vector<int> ends;
-  for (const auto& e : palette)
-    if (!has_child[e.node] && std::find(ends.begin(), ends.end(), e.node) == ends.end()) ends.push_back(e.node);
+  for (std::size_t i = 0; i < nn; ++i)
+    if (skeleton.joint[i] && !skeleton.parent_of_joint[i]) ends.push_back(static_cast<int>(i));
   // Per clip and frame: the skeleton root's place, then each end joint's place (model space).
   std::vector<std::vector<glm::vec3>> tracks;
   const int clip_count = std::max<int>(1, static_cast<int>(clips.size()));
@@ -442,10 +451,8 @@ void Model::bake_posture() {
     // Section 5.1, for any skeleton: candidate points are the skeleton's end effectors (leaf joints)
     // and points beyond them along their last bone; the pairs are the widest-spanning ones whose
     // distance actually changes in the clips, each point used at most twice.
-    std::vector<bool> in_skeleton(nn, false), has_child(nn, false);
-    for (const auto& e : palette) in_skeleton[e.node] = true;
-    for (std::size_t i = 0; i < nn; ++i)
-      if (in_skeleton[i] && nodes[i].parent >= 0 && in_skeleton[nodes[i].parent]) has_child[nodes[i].parent] = true;
+    const SkeletonFlags skeleton = skeleton_flags(*this);
+    const std::vector<bool>&in_skeleton = skeleton.joint, &has_child = skeleton.parent_of_joint;
     sample_clip(*this, -1, 0.0f, locals);
     world_matrices(*this, locals, world);
     std::vector<PosturePoint> points;
