@@ -14,26 +14,66 @@ namespace bb::runtime {
 
 namespace {
 
-// One primitive of level 0, welded (bitwise-equal vertices shared: a non-indexed mesh such as the
-// Fox's becomes a connected one the simplifier can collapse) into its own vertex list.
+// One primitive of level 0, welded (bitwise-equal vertices shared: a non-indexed mesh becomes a
+// connected one the simplifier can collapse) into its own vertex list. A flat-shaded primitive
+// (every corner its own vertex, its normal its triangle's: what the loader makes of a file without
+// normals, such as the Fox's) is welded without its normals, which would keep every triangle apart,
+// and its levels get flat normals again. UV and colour seams stay: meshoptimizer keeps the vertices
+// on either side of a seam together.
 struct WeldedPrimitive {
   std::vector<Vertex> vertices;
   std::vector<std::uint32_t> indices;
   int material = 0;
+  bool flat = false;
+  std::vector<glm::vec3> normals;  // flat: each welded vertex's normal in its first triangle (for zero-area ones)
   float scale = 1.0f;  // meshopt_simplifyScale: the simplifier's relative errors times this are model units
 };
+
+// The unit normal of triangle abc, or `otherwise` where it has no area.
+glm::vec3 face_normal(const Vertex& a, const Vertex& b, const Vertex& c, glm::vec3 otherwise) {
+  const glm::vec3 n = glm::cross(b.position - a.position, c.position - a.position);
+  const float l = glm::length(n);
+  return l > 0.0f ? n / l : otherwise;
+}
+
+// Whether every corner of the primitive has a vertex of its own whose normal is its triangle's
+// (within 1e-3; a degenerate triangle's corners may hold anything).
+bool flat_shaded(const MeshLod& lod, const Primitive& p) {
+  std::vector<std::uint32_t> used(p.index_count);
+  for (std::uint32_t k = 0; k < p.index_count; ++k) used[k] = lod.indices[p.first_index + k];
+  std::sort(used.begin(), used.end());
+  if (std::adjacent_find(used.begin(), used.end()) != used.end()) return false;
+  for (std::uint32_t t = 0; t + 2 < p.index_count; t += 3) {
+    const Vertex* c[3];
+    for (int k = 0; k < 3; ++k) c[k] = &lod.vertices[lod.indices[p.first_index + t + k]];
+    const glm::vec3 e = glm::cross(c[1]->position - c[0]->position, c[2]->position - c[0]->position);
+    if (!(glm::length(e) > 0.0f)) continue;
+    const glm::vec3 n = face_normal(*c[0], *c[1], *c[2], glm::vec3(0.0f));
+    for (int k = 0; k < 3; ++k)
+      if (glm::length(c[k]->normal - n) > 1e-3f) return false;
+  }
+  return true;
+}
 
 WeldedPrimitive weld(const MeshLod& lod, const Primitive& p) {
   WeldedPrimitive w;
   w.material = p.material;
+  w.flat = flat_shaded(lod, p);
   std::vector<Vertex> corners(p.index_count);
-  for (std::uint32_t k = 0; k < p.index_count; ++k) corners[k] = lod.vertices[lod.indices[p.first_index + k]];
+  for (std::uint32_t k = 0; k < p.index_count; ++k) {
+    corners[k] = lod.vertices[lod.indices[p.first_index + k]];
+    if (w.flat) corners[k].normal = glm::vec3(0.0f);  // set again per triangle of each level
+  }
   std::vector<unsigned int> remap(corners.size());
   const std::size_t unique =
       meshopt_generateVertexRemap(remap.data(), nullptr, corners.size(), corners.data(), corners.size(), sizeof(Vertex));
   w.vertices.resize(unique);
   meshopt_remapVertexBuffer(w.vertices.data(), corners.data(), corners.size(), sizeof(Vertex), remap.data());
   w.indices.assign(remap.begin(), remap.end());
+  if (w.flat) {
+    w.normals.assign(unique, glm::vec3(0.0f, 1.0f, 0.0f));
+    for (std::size_t k = corners.size(); k-- > 0;) w.normals[remap[k]] = lod.vertices[lod.indices[p.first_index + k]].normal;
+  }
   if (!w.vertices.empty()) w.scale = meshopt_simplifyScale(&w.vertices[0].position.x, w.vertices.size(), sizeof(Vertex));
   return w;
 }
@@ -69,15 +109,29 @@ int add_generated_lods(Model& model, const LoadOptions& options) {
       out.resize(n);
       error = std::max(error, rel * w.scale);
       if (n == 0) continue;  // simplified away (a primitive too small to keep at this level)
-      // The vertices this primitive's triangles still use, in first-use order.
-      std::vector<std::uint32_t> slot(w.vertices.size(), ~0u);
       Primitive prim{static_cast<std::uint32_t>(lod.indices.size()), static_cast<std::uint32_t>(n), w.material};
-      for (std::uint32_t i : out) {
-        if (slot[i] == ~0u) {
-          slot[i] = static_cast<std::uint32_t>(lod.vertices.size());
-          lod.vertices.push_back(w.vertices[i]);
+      if (w.flat) {
+        // Flat shading again: every corner a vertex of its own with its triangle's normal.
+        for (std::size_t t = 0; t < n; t += 3) {
+          // (A triangle of no area, such as three border vertices on one line, draws nothing in
+          // the bind pose but may once skinned: its first corner's normal in the file.)
+          const glm::vec3 nrm = face_normal(w.vertices[out[t]], w.vertices[out[t + 1]], w.vertices[out[t + 2]], w.normals[out[t]]);
+          for (int k = 0; k < 3; ++k) {
+            lod.indices.push_back(static_cast<std::uint32_t>(lod.vertices.size()));
+            lod.vertices.push_back(w.vertices[out[t + k]]);
+            lod.vertices.back().normal = nrm;
+          }
         }
-        lod.indices.push_back(slot[i]);
+      } else {
+        // The vertices this primitive's triangles still use, in first-use order.
+        std::vector<std::uint32_t> slot(w.vertices.size(), ~0u);
+        for (std::uint32_t i : out) {
+          if (slot[i] == ~0u) {
+            slot[i] = static_cast<std::uint32_t>(lod.vertices.size());
+            lod.vertices.push_back(w.vertices[i]);
+          }
+          lod.indices.push_back(slot[i]);
+        }
       }
       lod.primitives.push_back(prim);
     }

@@ -1,5 +1,6 @@
 // Loading and animating skinned glTF: exact answers on SimpleSkin and hand-made channels, properties
 // on the real models, and every malformed validator file rejected cleanly (never a crash).
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -350,10 +351,53 @@ TEST(GeneratedLods, AFlatGridLosesNothing) {
   EXPECT_EQ(add_generated_lods(m, o), 0);  // a model with levels keeps its own
 }
 
+// A flat-shaded mesh (every corner its own vertex with its triangle's normal, as the loader makes of
+// a file without normals) is welded without its normals, simplified like the indexed grid above, and
+// its levels are flat-shaded again.
+TEST(GeneratedLods, AFlatShadedGridIsWeldedAndStaysFlat) {
+  Model m;
+  m.nodes = {Node{"root", -1, {}}};
+  m.palette = {PaletteEntry{0, glm::mat4(1)}};
+  MeshLod lod;
+  const int n = 16;
+  auto corner = [&](int x, int y) {
+    Vertex v;
+    v.position = {x / float(n), y / float(n), 0.0f};
+    v.normal = {0, 0, 1};
+    v.uv = {x / float(n), y / float(n)};
+    lod.indices.push_back(static_cast<std::uint32_t>(lod.vertices.size()));
+    lod.vertices.push_back(v);
+  };
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) {
+      corner(x, y), corner(x + 1, y), corner(x + 1, y + 1);
+      corner(x, y), corner(x + 1, y + 1), corner(x, y + 1);
+    }
+  lod.primitives = {Primitive{0, static_cast<std::uint32_t>(lod.indices.size()), 0}};
+  m.lods = {lod};
+  m.materials = {Material{}};
+  LoadOptions o;
+  o.lod_levels = 3;
+  ASSERT_EQ(add_generated_lods(m, o), 3);
+  for (std::size_t l = 1; l < m.lods.size(); ++l) {
+    const MeshLod& g = m.lods[l];
+    EXPECT_LE(g.triangle_count() * 5, m.lods[l - 1].triangle_count() * 4);
+    EXPECT_GE(g.triangle_count() * 5, m.lods[l - 1].triangle_count() * 2);
+    EXPECT_LT(g.generated_error, 1e-6f);
+    ASSERT_EQ(g.vertices.size(), g.indices.size());  // a vertex per corner
+    for (std::size_t k = 0; k < g.indices.size(); ++k) EXPECT_EQ(g.indices[k], k);
+    for (const Vertex& v : g.vertices) {
+      EXPECT_EQ(v.normal, glm::vec3(0, 0, 1));
+      EXPECT_EQ(v.uv, glm::vec2(v.position.x, v.position.y));  // each corner keeps its own texture coordinates
+    }
+  }
+}
+
 // On CesiumMan (one level in the file): coarser levels, each at most 80 % of the one before, with
 // growing errors; each finer level gives way where the next one's error shows as one pixel of a
-// 1080-pixel-high view. The Fox's triangles share no vertices that weld (flat shading, seams): nothing
-// to collapse, so it keeps its one level.
+// 1080-pixel-high view. The Fox has no normals in its file, so its triangles are flat-shaded and
+// share no vertex: welded without its normals, it gets levels too, flat-shaded, whose every
+// corner keeps a position and texture coordinates of the file's (the seams stay where they were).
 TEST(GeneratedLods, SharedModels) {
   const std::string cesium = gltf_dir() + "/CesiumMan.glb", fox = gltf_dir() + "/Fox.glb";
   REQUIRE_SHARED(cesium);
@@ -380,7 +424,30 @@ TEST(GeneratedLods, SharedModels) {
   REQUIRE_SHARED(fox);
   auto f = load_model(fox, o);
   ASSERT_TRUE(f.ok());
-  EXPECT_EQ(f->lods.size(), 1u);
+  ASSERT_GE(f->lods.size(), 3u);
+  float flo = 1e30f, fhi = -1e30f;
+  for (const Vertex& v : f->lods[0].vertices) flo = std::min(flo, v.position.y), fhi = std::max(fhi, v.position.y);
+  std::set<std::array<float, 5>> source;
+  for (const Vertex& v : f->lods[0].vertices) source.insert({v.position.x, v.position.y, v.position.z, v.uv.x, v.uv.y});
+  for (std::size_t l = 1; l < f->lods.size(); ++l) {
+    const MeshLod &g = f->lods[l], &finer = f->lods[l - 1];
+    std::printf("Fox level %zu: %zu triangles, error %.3f of the height, used below %.4f of the view\n", l,
+                g.triangle_count(), g.generated_error / (fhi - flo), finer.screen_coverage);
+    EXPECT_LE(g.triangle_count() * 5, finer.triangle_count() * 4);
+    EXPECT_GT(g.generated_error, finer.generated_error);
+    ASSERT_EQ(g.vertices.size(), g.indices.size());
+    std::size_t unknown = 0;
+    for (std::size_t t = 0; t < g.indices.size(); t += 3) {
+      const Vertex &a = g.vertices[g.indices[t]], &b = g.vertices[g.indices[t + 1]], &c = g.vertices[g.indices[t + 2]];
+      const glm::vec3 e = glm::cross(b.position - a.position, c.position - a.position);
+      if (glm::length(e) > 0.0f) {
+        for (const Vertex* v : {&a, &b, &c}) EXPECT_LT(glm::length(v->normal - glm::normalize(e)), 1e-4f);
+      }
+      for (const Vertex* v : {&a, &b, &c})
+        unknown += source.count({v->position.x, v->position.y, v->position.z, v->uv.x, v->uv.y}) == 0;
+    }
+    EXPECT_EQ(unknown, 0u);
+  }
 }
 
 TEST(LoadModel, PosturePairsOverride) {

@@ -272,8 +272,9 @@ struct LoadOptions {
   float bake_rate = 60.0f;  // frames per second for the baked clips
   // Levels of detail for a file that has one level only (no MSFT_lod): up to this many coarser
   // levels are made at load, each with about half the triangles of the one before (meshoptimizer's
-  // simplifier on the welded bind-pose mesh, each primitive on its own, borders kept), until a level
-  // would keep more than 80 % of the one before. Each is used where its error projects under
+  // simplifier on the welded bind-pose mesh, each primitive on its own, borders kept; a flat-shaded
+  // primitive welded without its normals and flat-shaded again), until a level would keep more than
+  // 80 % of the one before. Each is used where its error projects under
   // lod_error_px pixels on a viewport lod_reference_height_px high (MeshLod::screen_coverage).
   // 0: none (the file's levels only).
   int lod_levels = 0;
