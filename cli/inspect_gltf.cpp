@@ -134,14 +134,20 @@ int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
   const auto unlit = static_cast<std::size_t>(
       std::count_if(m.materials.begin(), m.materials.end(), [](const runtime::Material& mat) { return mat.unlit; }));
   j["unlit_materials"] = unlit;  // KHR_materials_unlit
+  const auto blended = static_cast<std::size_t>(
+      std::count_if(m.materials.begin(), m.materials.end(), [](const runtime::Material& mat) { return mat.alpha_blend; }));
+  j["blend_materials"] = blended;  // alphaMode BLEND
   j["textures"] = m.textures.size();
   if (as_json) {
     std::cout << j.dump() << "\n";
     return 0;
   }
+  std::string kinds;
+  if (unlit > 0) kinds += std::to_string(unlit) + " unlit";
+  if (blended > 0) kinds += (kinds.empty() ? "" : ", ") + std::to_string(blended) + " blended";
   std::printf("glTF %s: %d joints, %zu nodes, height %.3f (model units), %zu materials%s, %zu textures\n", path.c_str(),
-              joints, m.nodes.size(), height, m.materials.size(),
-              unlit > 0 ? (" (" + std::to_string(unlit) + " unlit)").c_str() : "", m.textures.size());
+              joints, m.nodes.size(), height, m.materials.size(), kinds.empty() ? "" : (" (" + kinds + ")").c_str(),
+              m.textures.size());
   std::printf("lod  triangles  vertices  coverage  closed manifold self-x  hausdorff/height  textured\n");
   for (const auto& l : lods)
     std::printf("%3d  %9zu  %8zu  %8.3f  %6s %8s %6zu  %16.4f  %s\n", l["level"].get<int>(), l["triangles"].get<size_t>(),

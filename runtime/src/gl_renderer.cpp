@@ -120,7 +120,8 @@ void main() {
 )";
 
 // One program per kind of material (ShadeProgram): BB_TEXTURED fetches the base colour texture,
-// BB_MASKED discards below the alpha cutoff. llvmpipe runs a fetch that a uniform makes useless
+// BB_MASKED discards below the alpha cutoff, and with u_blend 1 (alpha BLEND, cutoff 0) writes the
+// colour premultiplied by its alpha instead of opaque. llvmpipe runs a fetch that a uniform makes useless
 // (a 1x1 white texture), and a shader that can discard loses the early depth test; the plain
 // variant has neither (flow test bed, our body untextured but for its lowest level, 4x MSAA:
 // the geometry frame about 9 % faster).
@@ -130,6 +131,9 @@ uniform vec4 u_color;
 uniform float u_cutoff;  // < 0: opaque
 uniform vec3 u_light;    // unit, world, towards the light
 uniform float u_lit;     // 1: lit; 0: unlit (KHR_materials_unlit: the colour as is)
+#ifdef BB_MASKED
+uniform float u_blend;   // 1: alpha BLEND (premultiplied output); 0: opaque
+#endif
 in vec3 v_nrm;
 in vec2 v_uv;
 #ifdef BB_COLORED
@@ -159,17 +163,19 @@ void main() {
 #ifdef BB_COLORED
   c *= v_color;
 #endif
+  float a = 1.0;  // premultiplied, opaque
 #ifdef BB_MASKED
   if (c.a < u_cutoff) discard;
+  a = mix(1.0, clamp(c.a, 0.0, 1.0), u_blend);
 #endif
   vec3 n = normalize(v_nrm);
   if (!gl_FrontFacing) n = -n;
 #ifdef BB_NORMALS
-  o_color = vec4(c.rgb, 1.0);
-  o_normal = vec4(vec3(dot(n, v_ho), dot(n, v_uo), dot(n, v_vo)) * 0.5 + 0.5, u_lit);
+  o_color = vec4(c.rgb * a, a);
+  o_normal = vec4(vec3(dot(n, v_ho), dot(n, v_uo), dot(n, v_vo)) * 0.5 + 0.5, u_lit) * a;
 #else
   float l = mix(1.0, 0.35 + 0.65 * max(dot(n, u_light), 0.0), u_lit);
-  o_color = vec4(c.rgb * l, 1.0);  // premultiplied, opaque
+  o_color = vec4(c.rgb * (l * a), a);
 #endif
 #ifdef BB_OFFSET
   o_offset = vec2(v_offset, 1.0);
@@ -667,9 +673,9 @@ struct Renderer::Impl {
   static constexpr std::size_t kShadeVariants = 6;
   struct ShadeProgram {
     std::array<GLuint, kShadeVariants> prog{};
-    std::array<GLint, kShadeVariants> color{}, cutoff{}, lit{}, viewproj{};
+    std::array<GLint, kShadeVariants> color{}, cutoff{}, lit{}, blend{}, viewproj{};
     static std::size_t variant(const Material& m) {
-      return (m.alpha_mask ? 2 : m.texture >= 0 ? 1 : 0) + (m.vertex_colors ? 3 : 0);
+      return (m.alpha_mask || m.alpha_blend ? 2 : m.texture >= 0 ? 1 : 0) + (m.vertex_colors ? 3 : 0);
     }
   } shade_geometry, shade_snapshot;
   GLuint prog_clear = 0;
@@ -685,6 +691,7 @@ struct Renderer::Impl {
   GLuint atlas_offset = 0;  // depth-corrected cards' masked plane offsets (RG16F), same pages
   GLuint atlas_offset_wide = 0;  // the same at a quarter of the resolution, made by kCoverageCs
   bool fits_due = false;  // a snapshot of this frame wants its rectangle
+  bool any_blended = false;  // the model has an alpha-blended material
   // DrawOptions::time_stages: timestamps at the start and after snapshots, coverage, geometry,
   // impostors.
   std::array<GLuint, 5> stamps{};
@@ -789,7 +796,8 @@ struct Renderer::Impl {
     const std::size_t v = ShadeProgram::variant(m);
     glUseProgram(sp.prog[v]);
     glProgramUniform4fv(sp.prog[v], sp.color[v], 1, glm::value_ptr(m.base_color));
-    glProgramUniform1f(sp.prog[v], sp.cutoff[v], m.alpha_cutoff);
+    glProgramUniform1f(sp.prog[v], sp.cutoff[v], m.alpha_blend ? 0.0f : m.alpha_cutoff);
+    glProgramUniform1f(sp.prog[v], sp.blend[v], m.alpha_blend ? 1.0f : 0.0f);
     glProgramUniform1f(sp.prog[v], sp.lit[v], m.unlit ? 0.0f : 1.0f);
     if (v % 3 > 0) {
       glBindTextureUnit(1, m.texture >= 0 ? textures[m.texture] : white);
@@ -820,40 +828,72 @@ struct Renderer::Impl {
     }
   }
 
+  // Which primitives a draw takes: the opaque (and alpha-tested) ones, the alpha-blended ones, or
+  // both in that order (a snapshot's window holds one character, so its blended surfaces need only
+  // follow its own opaque ones; the geometry pass draws every character's opaque surfaces first).
+  enum class Surfaces { kOpaque, kBlended, kBoth };
+  bool blended(const Primitive& p) const { return model->materials[p.material].alpha_blend; }
+  // Blending for alpha-blended primitives: premultiplied over what is drawn, tested against the
+  // depth but not writing it; depth-corrected cards' plane offsets stay those of the opaque surface.
+  void blend_state(bool on) {
+    if (on) {
+      glEnable(GL_BLEND);
+      glBlendFunc(GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+      glDepthMask(GL_FALSE);
+      if (parallax) glColorMaski(2, GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+    } else {
+      glDisable(GL_BLEND);
+      glDepthMask(GL_TRUE);
+      if (parallax) glColorMaski(2, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    }
+  }
+
   // The triangles of body part `part` only (the part index buffer's ranges).
   void draw_part(int lod, int part, GLsizei count, GLuint base_instance) {
     const MeshLod& ml = model->lods[lod];
     const PartIndices& pi = model->part_indices(lod);
-    for (std::size_t k = 0; k < ml.primitives.size(); ++k) {
-      const PartIndices::Range& r = pi.ranges[k * parts + part];
-      if (r.count == 0) continue;
-      set_material(shade_snapshot, ml.primitives[k].material);
-      glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(r.count), GL_UNSIGNED_INT,
-                                          reinterpret_cast<const void*>(static_cast<std::uintptr_t>(r.first) * 4), count,
-                                          base_instance);
-      drew_indices(static_cast<std::size_t>(r.count) * static_cast<std::size_t>(count));
+    for (bool blend : {false, true}) {
+      if (blend && !any_blended) break;
+      for (std::size_t k = 0; k < ml.primitives.size(); ++k) {
+        const PartIndices::Range& r = pi.ranges[k * parts + part];
+        if (r.count == 0 || blended(ml.primitives[k]) != blend) continue;
+        set_material(shade_snapshot, ml.primitives[k].material);
+        if (blend) blend_state(true);
+        glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(r.count), GL_UNSIGNED_INT,
+                                            reinterpret_cast<const void*>(static_cast<std::uintptr_t>(r.first) * 4), count,
+                                            base_instance);
+        if (blend) blend_state(false);
+        drew_indices(static_cast<std::size_t>(r.count) * static_cast<std::size_t>(count));
+      }
     }
   }
 
   void take_snapshots(const FramePlan& plan, bool time_stages);
   void take_snapshot_passes(const FramePlan& plan);  // the draws; sets fits_due
 
-  // Instances [base_instance, base_instance + count) of level `lod`, in as many draws as the
-  // flushes (flush_at) want.
-  void draw_lod(const ShadeProgram& sp, int lod, GLsizei count, GLuint base_instance) {
+  // Instances [base_instance, base_instance + count) of level `lod`, its `surfaces`, in as many
+  // draws as the flushes (flush_at) want.
+  void draw_lod(const ShadeProgram& sp, int lod, GLsizei count, GLuint base_instance, Surfaces surfaces = Surfaces::kBoth) {
     const MeshLod& ml = model->lods[lod];
     const std::size_t per = instance_indices(lod, -1);
+    if (surfaces == Surfaces::kBlended && !any_blended) return;
     for (GLsizei done = 0; done < count;) {
       GLsizei n = count - done;
       if (flush_at > 0 && per > 0) {
         const std::size_t left = flush_at > unflushed ? flush_at - unflushed : 1;
         n = std::min<GLsizei>(n, static_cast<GLsizei>(std::max<std::size_t>(1, (left + per - 1) / per)));
       }
-      for (const Primitive& p : ml.primitives) {
-        set_material(sp, p.material);
-        glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(p.index_count), GL_UNSIGNED_INT,
-                                            reinterpret_cast<const void*>(static_cast<std::uintptr_t>(p.first_index) * 4),
-                                            n, base_instance + static_cast<GLuint>(done));
+      for (bool blend : {false, true}) {
+        if (blend ? surfaces == Surfaces::kOpaque || !any_blended : surfaces == Surfaces::kBlended) continue;
+        for (const Primitive& p : ml.primitives) {
+          if (blended(p) != blend) continue;
+          set_material(sp, p.material);
+          if (blend) blend_state(true);
+          glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(p.index_count), GL_UNSIGNED_INT,
+                                              reinterpret_cast<const void*>(static_cast<std::uintptr_t>(p.first_index) * 4),
+                                              n, base_instance + static_cast<GLuint>(done));
+          if (blend) blend_state(false);
+        }
       }
       drew_indices(per * static_cast<std::size_t>(n));
       done += n;
@@ -965,6 +1005,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   Impl& d = *r->impl_;
   d.model = &model;
   d.config = config;
+  d.any_blended = std::any_of(model.materials.begin(), model.materials.end(), [](const Material& m) { return m.alpha_blend; });
   while (glGetError() != GL_NO_ERROR) {
   }
   // kShadeFs's variants (Impl::ShadeProgram) of one program; those with vertex colours only where the model
@@ -979,6 +1020,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
       sp.color[v] = glGetUniformLocation(*p, "u_color");
       sp.cutoff[v] = glGetUniformLocation(*p, "u_cutoff");
       sp.lit[v] = glGetUniformLocation(*p, "u_lit");
+      sp.blend[v] = glGetUniformLocation(*p, "u_blend");
       sp.viewproj[v] = glGetUniformLocation(*p, "u_viewproj");
       glProgramUniform1i(*p, glGetUniformLocation(*p, "u_palette_size"), static_cast<GLint>(model.palette.size()));
     }
@@ -1326,12 +1368,19 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
             return n;
           },
           2);
-      for (std::size_t lod = 0; lod < plan.geometry.size() && lod < d.lods.size(); ++lod) {
-        const GLsizei count = static_cast<GLsizei>(plan.geometry[lod].size());
-        if (count == 0) continue;
-        glBindVertexArray(d.lods[lod].vao_geometry);
-        d.draw_lod(d.shade_geometry, static_cast<int>(lod), count, base);
-        base += static_cast<GLuint>(count);
+      // Every character's opaque surfaces, then (where the model has any) its alpha-blended ones
+      // over them. The blended surfaces of different characters are drawn in the plan's order, not
+      // sorted by distance.
+      for (auto surfaces : {Impl::Surfaces::kOpaque, Impl::Surfaces::kBlended}) {
+        if (surfaces == Impl::Surfaces::kBlended && !d.any_blended) break;
+        base = 0;
+        for (std::size_t lod = 0; lod < plan.geometry.size() && lod < d.lods.size(); ++lod) {
+          const GLsizei count = static_cast<GLsizei>(plan.geometry[lod].size());
+          if (count == 0) continue;
+          glBindVertexArray(d.lods[lod].vao_geometry);
+          d.draw_lod(d.shade_geometry, static_cast<int>(lod), count, base, surfaces);
+          base += static_cast<GLuint>(count);
+        }
       }
     }
   }

@@ -436,10 +436,11 @@ struct Builder {
       if (const int si = c.m.textures[ti].sampler; si >= 0) mat.sampler = sampler_table[si];
     }
     mat.unlit = gm.extensions.count("KHR_materials_unlit") > 0;
-    if (gm.alphaMode == "MASK" || gm.alphaMode == "BLEND") {
+    if (gm.alphaMode == "MASK") {
       mat.alpha_mask = true;
-      mat.alpha_cutoff = gm.alphaMode == "MASK" ? static_cast<float>(gm.alphaCutoff) : 0.5f;
+      mat.alpha_cutoff = static_cast<float>(gm.alphaCutoff);
     }
+    mat.alpha_blend = gm.alphaMode == "BLEND";
     int r = static_cast<int>(out.materials.size());
     out.materials.push_back(mat);
     material_index[{mi, colored}] = r;

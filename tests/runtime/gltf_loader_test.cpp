@@ -293,6 +293,33 @@ TEST(GltfLoader, UnlitMaterialsAreMarked) {
   EXPECT_FALSE(m->materials[lod.primitives[1].material].unlit);
 }
 
+// alphaMode: OPAQUE (the default) neither tests nor blends; MASK tests at alphaCutoff (default 0.5);
+// BLEND blends and does not test.
+TEST(GltfLoader, AlphaModesAreKept) {
+  GltfFile f;
+  int pos = f.accessor(f.view(std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0}), kFloat, 3, "VEC3");
+  f.mesh({{"POSITION", pos}}, -1, 0);
+  json prim = f.j["meshes"][0]["primitives"][0];
+  for (int k = 1; k < 4; ++k) {
+    prim["material"] = k;
+    f.j["meshes"][0]["primitives"].push_back(prim);
+  }
+  f.j["materials"] = json::array({json::object(), {{"alphaMode", "MASK"}}, {{"alphaMode", "MASK"}, {"alphaCutoff", 0.25}},
+                                  {{"alphaMode", "BLEND"}, {"alphaCutoff", 0.25}}});
+  auto m = load_model(f.write("alpha_modes"));
+  ASSERT_TRUE(m.ok()) << m.error().message();
+  const MeshLod& lod = m->lods[0];
+  ASSERT_EQ(lod.primitives.size(), 4u);
+  const Material* mat[4];
+  for (int k = 0; k < 4; ++k) mat[k] = &m->materials[lod.primitives[k].material];
+  EXPECT_FALSE(mat[0]->alpha_mask || mat[0]->alpha_blend);
+  EXPECT_TRUE(mat[1]->alpha_mask && !mat[1]->alpha_blend);
+  EXPECT_EQ(mat[1]->alpha_cutoff, 0.5f);
+  EXPECT_TRUE(mat[2]->alpha_mask && !mat[2]->alpha_blend);
+  EXPECT_EQ(mat[2]->alpha_cutoff, 0.25f);
+  EXPECT_TRUE(mat[3]->alpha_blend && !mat[3]->alpha_mask);
+}
+
 // Morph targets are drawn at their default weights, baked into the vertices: the node's weights where it
 // gives them, else the mesh's. Normals move with their targets and are renormalized. Animated weights are
 // counted, not played; weights that do not match the targets are an error.

@@ -1034,6 +1034,59 @@ TEST(CrowdRender, UnlitMaterialsKeepTheirColour) {
   }
 }
 
+// Alpha BLEND in both paths, with baked and relit snapshots, on the square (white, lit to 182) and a
+// second one 5 cm behind it (red): the blended square is listed first but drawn over the opaque one,
+// without hiding it. Where the squares overlap: half of each, (182, 91, 91), opaque; where the white
+// one is alone, its colour at half alpha over the transparent target, premultiplied: (91, 91, 91, 128).
+// Drawn first with depth, the white would hide the red, (91, 91, 91, 128) there too; drawn first without
+// it, the red would cover it, (182, 0, 0). Alpha-tested as MASK at 0.5 used to: the white opaque.
+TEST(CrowdRender, BlendedSurfacesLieOverTheOpaqueOnes) {
+  REQUIRE_GL();
+  Model m = square_model();
+  MeshLod& lod = m.lods[0];
+  for (std::uint32_t k = 0; k < 4; ++k) {
+    Vertex v = lod.vertices[k];
+    v.position = glm::vec3(v.position.x * 1.02f + 0.05f, v.position.y, -0.05f);  // offset: a strip of white alone
+    lod.vertices.push_back(v);
+  }
+  for (std::uint32_t i : {4u, 5u, 6u, 4u, 6u, 7u}) lod.indices.push_back(i);
+  lod.primitives = {Primitive{0, 6, 0}, Primitive{6, 6, 1}};
+  m.materials = {Material{}, Material{}};
+  m.materials[0].base_color = glm::vec4(1.0f, 1.0f, 1.0f, 0.5f);
+  m.materials[0].alpha_blend = true;
+  m.materials[1].base_color = glm::vec4(1.0f, 0.0f, 0.0f, 1.0f);
+  m.bake(30.0f);
+  auto near = [](const std::uint8_t* px, std::array<int, 4> want) {
+    for (int k = 0; k < 4; ++k)
+      if (std::abs(px[k] - want[k]) > 2) return false;
+    return true;
+  };
+  for (bool relight : {false, true}) {
+    ImpostorConfig cfg = SquareScene::fresh();
+    cfg.relight = relight;
+    SquareScene scene(m, cfg);
+    ASSERT_TRUE(scene.ok());
+    for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) {
+      const auto px = scene.frame(mode);
+      int both = 0, white_alone = 0, red_alone = 0, other = 0;
+      for (std::size_t i = 0; i < px.size(); i += 4) {
+        // Whole pixels only, away from the edges (a pixel with some of each has neither colour).
+        if (near(&px[i], {182, 91, 91, 255})) ++both;
+        else if (near(&px[i], {91, 91, 91, 128})) ++white_alone;
+        else if (near(&px[i], {182, 0, 0, 255})) ++red_alone;
+        else if (px[i + 3] > 0) ++other;
+      }
+      std::printf("%s snapshots, %s: %d pixels of both squares, %d of the blended one alone, %d of the opaque one alone, %d others\n",
+                  relight ? "relit" : "baked", mode == RenderMode::kGeometry ? "geometry" : "impostor", both, white_alone,
+                  red_alone, other);
+      EXPECT_GT(both, 2000);
+      EXPECT_GT(white_alone, 30);
+      EXPECT_GT(red_alone, 30);
+      EXPECT_LT(other, both / 4);  // the edges'
+    }
+  }
+}
+
 // A material's sampler decides how the texture is read outside [0, 1] and when magnified. The square's u
 // runs from -1 to 2 across it over a texture of two texels (blue, red); read with the nearest texel, the
 // middle row crosses bands of pure colour: one change of colour with clamp-to-edge (blue up to u = 0.5,

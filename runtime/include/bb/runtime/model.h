@@ -89,6 +89,10 @@ struct Material {
   TextureSampler sampler;      // how `texture` is read
   float alpha_cutoff = 0.5f;   // used when alpha_mask
   bool alpha_mask = false;
+  // glTF BLEND: drawn after the opaque surfaces, over them, without writing depth (premultiplied:
+  // colour times alpha plus what lies behind times one minus alpha); in a snapshot the texel keeps
+  // the blended colour and its accumulated alpha, so the impostor lets the background through alike.
+  bool alpha_blend = false;
   bool vertex_colors = false;  // its primitives' vertices carry colours (Vertex::color)
   bool unlit = false;          // KHR_materials_unlit: drawn in its base colour, with no light
 };
