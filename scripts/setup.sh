@@ -12,7 +12,7 @@ PKGS=(
   libopenmesh-dev libcgal-dev libgmp-dev libmpfr-dev
   libtinygltf-dev libglm-dev nlohmann-json3-dev libstb-dev libcli11-dev
   libopenvdb-dev libboost-iostreams-dev libimath-dev libtbb-dev libblosc-dev zlib1g-dev
-  libmeshoptimizer-dev
+  libmeshoptimizer-dev libwebp-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libegl-dev libgl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri
 )

@@ -17,6 +17,7 @@
 #include <meshoptimizer.h>
 #include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
+#include <webp/decode.h>
 
 #include "bb/runtime/model.h"
 
@@ -27,6 +28,41 @@ namespace tg = tinygltf;
 namespace {
 
 std::string idx(const char* array, int i) { return std::string("$.") + array + "[" + std::to_string(i) + "]"; }
+
+// tinygltf's image callback: WebP (EXT_texture_webp) through libwebp, anything else through tinygltf's
+// own stb_image loader. Without it a file with a WebP image failed to load at all, even one that
+// offers a PNG beside it.
+bool load_image(tg::Image* image, const int image_idx, std::string* err, std::string* warn, int req_width, int req_height,
+                const unsigned char* bytes, int size, void* user_data) {
+  const bool webp = size >= 12 && std::memcmp(bytes, "RIFF", 4) == 0 && std::memcmp(bytes + 8, "WEBP", 4) == 0;
+  if (!webp) return tg::LoadImageData(image, image_idx, err, warn, req_width, req_height, bytes, size, user_data);
+  int w = 0, h = 0;
+  std::uint8_t* rgba = size > 0 ? WebPDecodeRGBA(bytes, static_cast<std::size_t>(size), &w, &h) : nullptr;
+  if (!rgba || w <= 0 || h <= 0) {
+    if (rgba) WebPFree(rgba);
+    if (err) *err += idx("images", image_idx) + ": the WebP image does not decode (corrupt, or not a WebP libwebp " +
+                     std::to_string(WebPGetDecoderVersion() >> 16) + "." + std::to_string((WebPGetDecoderVersion() >> 8) & 0xff) +
+                     " reads)\n";
+    return false;
+  }
+  image->width = w;
+  image->height = h;
+  image->component = 4;
+  image->bits = 8;
+  image->pixel_type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
+  image->image.assign(rgba, rgba + static_cast<std::size_t>(w) * static_cast<std::size_t>(h) * 4);
+  WebPFree(rgba);
+  return true;
+}
+
+// The image a texture shows: EXT_texture_webp's source where it names one (the texture's own source
+// is then a fallback, or absent), else its source.
+int texture_source(const tg::Texture& t) {
+  if (auto it = t.extensions.find("EXT_texture_webp"); it != t.extensions.end() && it->second.IsObject() &&
+                                                         it->second.Has("source") && it->second.Get("source").IsInt())
+    return it->second.Get("source").Get<int>();
+  return t.source;
+}
 
 struct Ctx {
   const tg::Model& m;
@@ -432,7 +468,7 @@ struct Builder {
     if (f.size() == 4 && finite_all(f)) mat.base_color = glm::vec4(f[0], f[1], f[2], f[3]);
     int ti = gm.pbrMetallicRoughness.baseColorTexture.index;
     if (ti >= 0 && ti < static_cast<int>(c.m.textures.size())) {
-      mat.texture = texture_for_image(c.m.textures[ti].source);
+      mat.texture = texture_for_image(texture_source(c.m.textures[ti]));
       if (const int si = c.m.textures[ti].sampler; si >= 0) mat.sampler = sampler_table[si];
     }
     mat.unlit = gm.extensions.count("KHR_materials_unlit") > 0;
@@ -883,7 +919,7 @@ std::optional<std::vector<unsigned char>> glb_without_fallback_lengths(const std
 // (KHR_meshopt_compression is not: its vertex data is in meshopt's version 1 format, which meshoptimizer
 // 0.18, Debian 12's, cannot decode.)
 constexpr const char* kReadExtensions[] = {"KHR_mesh_quantization", "KHR_texture_transform", "KHR_materials_unlit",
-                                           "EXT_meshopt_compression", "MSFT_lod"};
+                                           "EXT_meshopt_compression", "EXT_texture_webp", "MSFT_lod"};
 
 Status check_required_extensions(const Ctx& c) {
   for (std::size_t i = 0; i < c.m.extensionsRequired.size(); ++i) {
@@ -987,6 +1023,7 @@ Result<Model> load_model(const std::string& path, const LoadOptions& options) {
   if (size < 2) return Error{path, "", "file is empty or too short to be glTF"};
   tg::Model gm;
   tg::TinyGLTF loader;
+  loader.SetImageLoader(load_image, nullptr);
   std::string err, warn;
   bool ok = false;
   const bool binary = fs::path(path).extension() == ".glb" || fs::path(path).extension() == ".GLB";

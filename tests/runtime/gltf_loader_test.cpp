@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 #include <meshoptimizer.h>
 #include <nlohmann/json.hpp>
+#include <webp/encode.h>
 
 #include "bb/runtime/model.h"
 
@@ -291,6 +292,66 @@ TEST(GltfLoader, UnlitMaterialsAreMarked) {
   ASSERT_EQ(lod.primitives.size(), 2u);
   EXPECT_TRUE(m->materials[lod.primitives[0].material].unlit);
   EXPECT_FALSE(m->materials[lod.primitives[1].material].unlit);
+}
+
+// EXT_texture_webp: a WebP image (lossless here, so exact) is decoded for the texture whose extension
+// names it, whether the texture's own source is absent (the extension required) or a PNG fallback beside
+// it (the extension used; the WebP is preferred). A WebP that does not decode is an error naming the file
+// and the image.
+TEST(GltfLoader, WebpTexturesAreDecoded) {
+  const std::uint8_t rgba[16] = {255, 0, 0, 255, 0, 255, 0, 255, 0, 0, 255, 255, 255, 255, 255, 128};
+  std::uint8_t* webp = nullptr;
+  const std::size_t webp_size = WebPEncodeLosslessRGBA(rgba, 2, 2, 8, &webp);
+  ASSERT_GT(webp_size, 12u);
+  const std::vector<std::uint8_t> webp_bytes(webp, webp + webp_size);
+  WebPFree(webp);
+  // A 1 x 1 PNG of (10, 20, 30, 255).
+  const std::vector<std::uint8_t> png = {
+      0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48, 0x44, 0x52, 0x00, 0x00,
+      0x00, 0x01, 0x00, 0x00, 0x00, 0x01, 0x08, 0x06, 0x00, 0x00, 0x00, 0x1f, 0x15, 0xc4, 0x89, 0x00, 0x00, 0x00,
+      0x0d, 0x49, 0x44, 0x41, 0x54, 0x78, 0x9c, 0x63, 0xe0, 0x12, 0x91, 0xfb, 0x0f, 0x00, 0x01, 0xa4, 0x01, 0x3c,
+      0x93, 0x8b, 0x0e, 0xb7, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
+  auto file = [&](bool fallback, const std::vector<std::uint8_t>& webp_image) {
+    GltfFile f;
+    int pos = f.accessor(f.view(std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0}), kFloat, 3, "VEC3");
+    int uv = f.accessor(f.view(std::vector<float>{0, 0, 1, 0, 0, 1}), kFloat, 3, "VEC2");
+    f.mesh({{"POSITION", pos}, {"TEXCOORD_0", uv}}, -1, 0);
+    json images = json::array({{{"bufferView", f.view(webp_image)}, {"mimeType", "image/webp"}}});
+    json texture = {{"extensions", {{"EXT_texture_webp", {{"source", 0}}}}}};
+    if (fallback) {
+      images.push_back({{"bufferView", f.view(png)}, {"mimeType", "image/png"}});
+      texture["source"] = 1;
+      f.j["extensionsUsed"] = {"EXT_texture_webp"};
+    } else {
+      f.j["extensionsUsed"] = {"EXT_texture_webp"};
+      f.j["extensionsRequired"] = {"EXT_texture_webp"};
+    }
+    f.j["images"] = images;
+    f.j["textures"] = json::array({texture});
+    f.j["materials"] = json::array({{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}}});
+    return f;
+  };
+  for (bool fallback : {false, true}) {
+    GltfFile f = file(fallback, webp_bytes);
+    auto m = load_model(f.write(fallback ? "webp_fallback" : "webp"));
+    ASSERT_TRUE(m.ok()) << m.error().message();
+    const Material& mat = m->materials[m->lods[0].primitives[0].material];
+    ASSERT_GE(mat.texture, 0);
+    const Texture& t = m->textures[mat.texture];
+    EXPECT_EQ(t.width, 2);
+    EXPECT_EQ(t.height, 2);
+    ASSERT_EQ(t.rgba.size(), 16u);
+    EXPECT_TRUE(std::equal(t.rgba.begin(), t.rgba.end(), rgba)) << "fallback " << fallback;
+  }
+  std::vector<std::uint8_t> corrupt = webp_bytes;
+  for (std::size_t k = 12; k < corrupt.size(); ++k) corrupt[k] = 0x5a;
+  GltfFile f = file(false, corrupt);
+  const std::string path = f.write("webp_corrupt");
+  auto m = load_model(path);
+  ASSERT_FALSE(m.ok());
+  const std::string msg = m.error().message();
+  EXPECT_NE(msg.find(path), std::string::npos) << msg;
+  EXPECT_NE(msg.find("$.images[0]: the WebP image does not decode"), std::string::npos) << msg;
 }
 
 // alphaMode: OPAQUE (the default) neither tests nor blends; MASK tests at alphaCutoff (default 0.5);
