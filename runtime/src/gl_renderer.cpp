@@ -883,6 +883,7 @@ struct Renderer::Impl {
         const std::size_t left = flush_at > unflushed ? flush_at - unflushed : 1;
         n = std::min<GLsizei>(n, static_cast<GLsizei>(std::max<std::size_t>(1, (left + per - 1) / per)));
       }
+      std::size_t drawn = 0;  // indices of one instance
       for (bool blend : {false, true}) {
         if (blend ? surfaces == Surfaces::kOpaque || !any_blended : surfaces == Surfaces::kBlended) continue;
         for (const Primitive& p : ml.primitives) {
@@ -893,9 +894,10 @@ struct Renderer::Impl {
                                               reinterpret_cast<const void*>(static_cast<std::uintptr_t>(p.first_index) * 4),
                                               n, base_instance + static_cast<GLuint>(done));
           if (blend) blend_state(false);
+          drawn += p.index_count;
         }
       }
-      drew_indices(per * static_cast<std::size_t>(n));
+      drew_indices(drawn * static_cast<std::size_t>(n));
       done += n;
     }
   }

@@ -46,9 +46,8 @@ bool flat_shaded(const MeshLod& lod, const Primitive& p) {
   for (std::uint32_t t = 0; t + 2 < p.index_count; t += 3) {
     const Vertex* c[3];
     for (int k = 0; k < 3; ++k) c[k] = &lod.vertices[lod.indices[p.first_index + t + k]];
-    const glm::vec3 e = glm::cross(c[1]->position - c[0]->position, c[2]->position - c[0]->position);
-    if (!(glm::length(e) > 0.0f)) continue;
     const glm::vec3 n = face_normal(*c[0], *c[1], *c[2], glm::vec3(0.0f));
+    if (n == glm::vec3(0.0f)) continue;
     for (int k = 0; k < 3; ++k)
       if (glm::length(c[k]->normal - n) > 1e-3f) return false;
   }
