@@ -99,7 +99,10 @@ int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
     j["triangles"] = lod.triangle_count();
     j["vertices"] = lod.vertices.size();
     j["screen_coverage"] = lod.screen_coverage;
-    if (lod.made_at_load) j["generated_error_rel"] = lod.generated_error / bind_height;
+    if (lod.made_at_load) {
+      j["generated_error_rel"] = lod.generated_error / bind_height;
+      j["skinned_error_rel"] = lod.skinned_error / bind_height;
+    }
     j["closed"] = check.closed;
     j["manifold"] = check.manifold;
     j["oriented"] = check.oriented;

@@ -68,6 +68,11 @@ struct MeshLod {
   // moved; 0 for the file's levels).
   bool made_at_load = false;
   float generated_error = 0.0f;
+  // A made level's error as drawn: the farthest a vertex of level 0 lies from this level's surface,
+  // both skinned, over the rest pose and 12 instants of the clips (model units; a sampled estimate).
+  // The simplifier does not weigh the skin, so this can be far above generated_error; the level's
+  // switch takes the larger of the two.
+  float skinned_error = 0.0f;
   std::size_t triangle_count() const { return indices.size() / 3; }
 };
 
@@ -278,8 +283,9 @@ struct LoadOptions {
   // levels are made at load, each with about half the triangles of the one before (meshoptimizer's
   // simplifier on the welded bind-pose mesh, each primitive on its own, borders kept; a flat-shaded
   // primitive welded without its normals and flat-shaded again), until a level would keep more than
-  // 80 % of the one before. Each is used where its error projects under
-  // lod_error_px pixels on a viewport lod_reference_height_px high (MeshLod::screen_coverage).
+  // 80 % of the one before. Each is used where its error (the larger of the simplifier's and the
+  // skinned one, MeshLod::skinned_error) projects under lod_error_px pixels on a viewport
+  // lod_reference_height_px high (MeshLod::screen_coverage).
   // 0: none (the file's levels only).
   int lod_levels = 0;
   float lod_error_px = 1.0f;
