@@ -654,7 +654,7 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_flag("--hold-poses", a->hold_poses, "Every human keeps one pose while walking (isolates the pose lag)");
   cmd->add_option("--lods", a->lods,
                   "A model file with one level: up to N coarser levels made at load for both paths, each used where "
-                  "its error shows as under a pixel of a 1080-pixel-high view (0: none: the file's level only)")
+                  "its error (skinned, over its clips' poses) shows as under a pixel of a 1080-pixel-high view (0: none: the file's level only)")
       ->capture_default_str()
       ->check(CLI::Range(0, 8));
   cmd->add_option("--clip", a->clip,
