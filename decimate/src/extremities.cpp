@@ -292,9 +292,9 @@ Result<Proxies> bake_proxies(const mesher::SkinnedMesh& coarse, const mesher::Sk
     uint8_t p = detailed.extremity_part(t);
     if (p && p < 8) det_idx[p].insert(det_idx[p].end(), {detailed.indices[t], detailed.indices[t + 1], detailed.indices[t + 2]});
   }
-  std::vector<std::unique_ptr<detail::TriangleGrid>> grids(8);
+  std::vector<std::unique_ptr<runtime::detail::TriangleGrid>> grids(8);
   for (int p = 1; p < 8; ++p)
-    if (!det_idx[p].empty()) grids[p] = std::make_unique<detail::TriangleGrid>(detailed.positions, det_idx[p]);
+    if (!det_idx[p].empty()) grids[p] = std::make_unique<runtime::detail::TriangleGrid>(detailed.positions, det_idx[p]);
 
   std::vector<size_t> tris;
   for (size_t t = 0; t < coarse.indices.size(); t += 3) {

@@ -10,8 +10,8 @@ namespace bb::decimate {
 
 namespace {
 
-using detail::TriangleGrid;
-using detail::closest_on_triangle;
+using runtime::detail::TriangleGrid;
+using runtime::detail::closest_on_triangle;
 
 // Distances from the vertices and face centres of mesh a to mesh b: max and sum, count. Each
 // query tries the previous query's nearest triangle first (neighbouring samples mostly share it),

@@ -10,6 +10,7 @@
 
 #include "bb/runtime/animation.h"
 #include "bb/runtime/model.h"
+#include "triangle_grid.h"
 
 namespace bb::runtime {
 
@@ -78,39 +79,6 @@ WeldedPrimitive weld(const MeshLod& lod, const Primitive& p) {
   return w;
 }
 
-// The closest point to p on triangle abc, as barycentric weights of a, b, c (Ericson, Real-Time
-// Collision Detection, 5.1.5).
-glm::vec3 closest_on_triangle(glm::vec3 p, glm::vec3 a, glm::vec3 b, glm::vec3 c) {
-  const glm::vec3 ab = b - a, ac = c - a, ap = p - a;
-  const float d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
-  if (d1 <= 0.0f && d2 <= 0.0f) return {1, 0, 0};
-  const glm::vec3 bp = p - b;
-  const float d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
-  if (d3 >= 0.0f && d4 <= d3) return {0, 1, 0};
-  const float vc = d1 * d4 - d3 * d2;
-  if (vc <= 0.0f && d1 >= 0.0f && d3 <= 0.0f) {
-    const float v = d1 / (d1 - d3);
-    return {1 - v, v, 0};
-  }
-  const glm::vec3 cp = p - c;
-  const float d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
-  if (d6 >= 0.0f && d5 <= d6) return {0, 0, 1};
-  const float vb = d5 * d2 - d1 * d6;
-  if (vb <= 0.0f && d2 >= 0.0f && d6 <= 0.0f) {
-    const float w = d2 / (d2 - d6);
-    return {1 - w, 0, w};
-  }
-  const float va = d3 * d6 - d5 * d4;
-  if (va <= 0.0f && (d4 - d3) >= 0.0f && (d5 - d6) >= 0.0f) {
-    const float w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-    return {0, 1 - w, w};
-  }
-  const float denom = va + vb + vc;
-  if (!(std::abs(denom) > 0.0f)) return {1, 0, 0};  // no area: its first corner
-  const float v = vb / denom, w = vc / denom;
-  return {1 - v - w, v, w};
-}
-
 // A skinned vertex (linear blend of its four palette matrices).
 glm::vec3 skinned(const Vertex& v, const std::vector<glm::mat4>& palette) {
   glm::mat4 m(0.0f);
@@ -139,67 +107,18 @@ std::vector<std::vector<glm::mat4>> check_poses(const Model& model) {
   return poses;
 }
 
-// The largest distance from a point of `points` to the surface of triangles `tris` over `corners`
-// (a one-sided Hausdorff distance, taken at the points), or `at_least` where that is larger: a point
-// is looked at only until a triangle nearer than the largest so far turns up. Found on a uniform grid
-// of the triangles.
-float farthest_from_surface(const std::vector<glm::vec3>& points, const std::vector<glm::vec3>& corners,
-                            const std::vector<std::uint32_t>& tris, float at_least) {
-  if (tris.empty() || points.empty()) return at_least;
-  const std::size_t n = tris.size() / 3;
-  glm::vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
-  for (const glm::vec3& p : corners) lo = glm::min(lo, p), hi = glm::max(hi, p);
-  for (const glm::vec3& p : points) lo = glm::min(lo, p), hi = glm::max(hi, p);
-  const glm::vec3 extent = glm::max(hi - lo, glm::vec3(1e-6f));
-  // About 2 triangles a cell on average over the box's volume.
-  const float cell = std::cbrt(extent.x * extent.y * extent.z / std::max(1.0f, static_cast<float>(n) / 2.0f));
-  const glm::ivec3 dims = glm::clamp(glm::ivec3(glm::ceil(extent / cell)), glm::ivec3(1), glm::ivec3(128));
-  const glm::vec3 size = extent / glm::vec3(dims);
-  auto cell_of = [&](glm::vec3 p) { return glm::clamp(glm::ivec3((p - lo) / size), glm::ivec3(0), dims - 1); };
-  auto flat = [&](int x, int y, int z) { return (static_cast<std::size_t>(z) * dims.y + y) * dims.x + x; };
-  std::vector<std::vector<std::uint32_t>> grid(static_cast<std::size_t>(dims.x) * dims.y * dims.z);
-  for (std::uint32_t t = 0; t < n; ++t) {
-    const glm::vec3 &a = corners[tris[3 * t]], &b = corners[tris[3 * t + 1]], &c = corners[tris[3 * t + 2]];
-    const glm::ivec3 c0 = cell_of(glm::min(a, glm::min(b, c))), c1 = cell_of(glm::max(a, glm::max(b, c)));
-    for (int z = c0.z; z <= c1.z; ++z)
-      for (int y = c0.y; y <= c1.y; ++y)
-        for (int x = c0.x; x <= c1.x; ++x) grid[flat(x, y, z)].push_back(t);
-  }
-  const float min_size = std::min(size.x, std::min(size.y, size.z));
-  const int rings = std::max(dims.x, std::max(dims.y, dims.z));
-  float worst = at_least;
-  for (const glm::vec3& p : points) {
-    const glm::ivec3 home = cell_of(p);
-    float best = std::numeric_limits<float>::max();
-    // Shells of cells around p's until the next one lies farther than the best found, or the best
-    // is no more than the largest so far.
-    for (int r = 0; r <= rings && !(best < static_cast<float>(r - 1) * min_size) && best > worst; ++r)
-      for (int z = std::max(0, home.z - r); z <= std::min(dims.z - 1, home.z + r); ++z)
-        for (int y = std::max(0, home.y - r); y <= std::min(dims.y - 1, home.y + r); ++y)
-          for (int x = std::max(0, home.x - r); x <= std::min(dims.x - 1, home.x + r); ++x) {
-            if (std::max(std::abs(x - home.x), std::max(std::abs(y - home.y), std::abs(z - home.z))) != r) continue;
-            for (std::uint32_t t : grid[flat(x, y, z)]) {
-              const glm::vec3 &a = corners[tris[3 * t]], &b = corners[tris[3 * t + 1]], &c = corners[tris[3 * t + 2]];
-              const glm::vec3 w = closest_on_triangle(p, a, b, c);
-              best = std::min(best, glm::length(p - (w.x * a + w.y * b + w.z * c)));
-            }
-          }
-    if (best < std::numeric_limits<float>::max()) worst = std::max(worst, best);
-  }
-  return worst;
-}
-
 // A made level's error as drawn: the farthest a vertex of `base` lies from the surface of `lod`,
 // both skinned, over `poses` (model units). The simplifier measures its error in the bind pose
 // only and does not weigh the skin, so a vertex collapsed onto a neighbour that follows another bone
-// drifts off the surface as the joint bends.
+// drifts off the surface as the joint bends. Nearest triangles come from a grid of each posed level.
 float skinned_error(const std::vector<Vertex>& base, const MeshLod& lod, const std::vector<std::vector<glm::mat4>>& poses) {
-  std::vector<glm::vec3> points(base.size()), corners(lod.vertices.size());
+  if (lod.indices.empty()) return 0.0f;
+  std::vector<glm::vec3> corners(lod.vertices.size());
   float worst = 0.0f;
   for (const auto& pose : poses) {
-    for (std::size_t i = 0; i < base.size(); ++i) points[i] = skinned(base[i], pose);
     for (std::size_t v = 0; v < lod.vertices.size(); ++v) corners[v] = skinned(lod.vertices[v], pose);
-    worst = farthest_from_surface(points, corners, lod.indices, worst);
+    const detail::TriangleGrid grid(corners, lod.indices);
+    for (const Vertex& v : base) worst = std::max(worst, grid.distance(skinned(v, pose)));
   }
   return worst;
 }

@@ -1,4 +1,6 @@
-// Internal: nearest-triangle queries on a triangle mesh through a uniform grid.
+// Internal: nearest-triangle queries on a triangle mesh through a uniform grid (GLM only). The
+// runtime measures its made levels with it (lod_generate.cpp); the offline decimation its
+// distances (decimate/src), which include it from here.
 #pragma once
 
 #include <algorithm>
@@ -8,7 +10,7 @@
 
 #include <glm/glm.hpp>
 
-namespace bb::decimate::detail {
+namespace bb::runtime::detail {
 
 // Closest point on triangle abc to p (Ericson, Real-Time Collision Detection, 5.1.5).
 inline glm::vec3 closest_on_triangle(const glm::vec3& p, const glm::vec3& a, const glm::vec3& b, const glm::vec3& c) {
@@ -170,4 +172,4 @@ class TriangleGrid {
   std::vector<Box> box_;  // per triangle
 };
 
-}  // namespace bb::decimate::detail
+}  // namespace bb::runtime::detail
