@@ -848,6 +848,16 @@ struct Renderer::Impl {
     }
   }
 
+  // `draw()` with `material` in `sp`, blended if the material is (blend_state around it).
+  template <class Draw>
+  void with_material(const ShadeProgram& sp, int material, Draw&& draw) {
+    set_material(sp, material);
+    const bool blend = model->materials[material].alpha_blend;
+    if (blend) blend_state(true);
+    draw();
+    if (blend) blend_state(false);
+  }
+
   // The triangles of body part `part` only (the part index buffer's ranges).
   void draw_part(int lod, int part, GLsizei count, GLuint base_instance) {
     const MeshLod& ml = model->lods[lod];
@@ -857,12 +867,11 @@ struct Renderer::Impl {
       for (std::size_t k = 0; k < ml.primitives.size(); ++k) {
         const PartIndices::Range& r = pi.ranges[k * parts + part];
         if (r.count == 0 || blended(ml.primitives[k]) != blend) continue;
-        set_material(shade_snapshot, ml.primitives[k].material);
-        if (blend) blend_state(true);
-        glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(r.count), GL_UNSIGNED_INT,
-                                            reinterpret_cast<const void*>(static_cast<std::uintptr_t>(r.first) * 4), count,
-                                            base_instance);
-        if (blend) blend_state(false);
+        with_material(shade_snapshot, ml.primitives[k].material, [&] {
+          glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(r.count), GL_UNSIGNED_INT,
+                                              reinterpret_cast<const void*>(static_cast<std::uintptr_t>(r.first) * 4), count,
+                                              base_instance);
+        });
         drew_indices(static_cast<std::size_t>(r.count) * static_cast<std::size_t>(count));
       }
     }
@@ -888,12 +897,11 @@ struct Renderer::Impl {
         if (blend ? surfaces == Surfaces::kOpaque || !any_blended : surfaces == Surfaces::kBlended) continue;
         for (const Primitive& p : ml.primitives) {
           if (blended(p) != blend) continue;
-          set_material(sp, p.material);
-          if (blend) blend_state(true);
-          glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(p.index_count), GL_UNSIGNED_INT,
-                                              reinterpret_cast<const void*>(static_cast<std::uintptr_t>(p.first_index) * 4),
-                                              n, base_instance + static_cast<GLuint>(done));
-          if (blend) blend_state(false);
+          with_material(sp, p.material, [&] {
+            glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(p.index_count), GL_UNSIGNED_INT,
+                                                reinterpret_cast<const void*>(static_cast<std::uintptr_t>(p.first_index) * 4),
+                                                n, base_instance + static_cast<GLuint>(done));
+          });
           drawn += p.index_count;
         }
       }
