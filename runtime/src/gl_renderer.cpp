@@ -762,6 +762,11 @@ struct Renderer::Impl {
   // Blending: the quads' -depth, and their order back to front.
   std::vector<float> billboard_depth;
   std::vector<std::uint32_t> billboard_order;
+  // The geometry pass's blended surfaces, back to front: each instance's level, in the plan's
+  // order, and the order they are drawn in.
+  std::vector<int> instance_lod;
+  std::vector<float> blend_depth;
+  std::vector<std::uint32_t> blend_order;
   DepthOrder depth_order;
   std::vector<BillboardGpu> billboard_scratch;
   struct Due {
@@ -1363,8 +1368,28 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
   // 2. Geometry: one instanced draw per LOD level and primitive.
   if (options.draw_geometry) {
     d.instance_scratch.clear();
-    for (const auto& l : plan.geometry) d.instance_scratch.insert(d.instance_scratch.end(), l.begin(), l.end());
-    if (!d.instance_scratch.empty()) {
+    d.instance_lod.clear();
+    for (std::size_t lod = 0; lod < plan.geometry.size() && lod < d.lods.size(); ++lod) {
+      d.instance_scratch.insert(d.instance_scratch.end(), plan.geometry[lod].begin(), plan.geometry[lod].end());
+      d.instance_lod.insert(d.instance_lod.end(), plan.geometry[lod].size(), static_cast<int>(lod));
+    }
+    const std::size_t n_instances = d.instance_scratch.size();
+    if (n_instances > 0 && d.any_blended) {
+      // The blended surfaces are drawn character by character from the farthest to the nearest
+      // (the distance along the view direction of the origin raised by Ta's height, times the
+      // scale), so that each lies over those behind it. The instances go again after the first
+      // copy in that order, and each run of one level is one draw.
+      const glm::vec3 fwd = glm::normalize(plan.camera.target - plan.camera.eye);
+      d.blend_depth.resize(n_instances);
+      for (std::size_t i = 0; i < n_instances; ++i) {
+        const InstanceGpu& g = d.instance_scratch[i];
+        const glm::vec3 centre = glm::vec3(g.position_yaw) + glm::vec3(0.0f, d.model->ta.y * g.anim.x, 0.0f);
+        d.blend_depth[i] = -glm::dot(centre - plan.camera.eye, fwd);
+      }
+      d.depth_order.sort(d.blend_depth, d.blend_order);
+      for (std::size_t k = 0; k < n_instances; ++k) d.instance_scratch.push_back(d.instance_scratch[d.blend_order[k]]);
+    }
+    if (n_instances > 0) {
       d.instances.upload(d.instance_scratch.data(), d.instance_scratch.size() * sizeof(InstanceGpu));
       for (std::size_t v = 0; v < Impl::kShadeVariants; ++v)
         if (d.shade_geometry.prog[v])
@@ -1379,18 +1404,22 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
           },
           2);
       // Every character's opaque surfaces, then (where the model has any) its alpha-blended ones
-      // over them. The blended surfaces of different characters are drawn in the plan's order, not
-      // sorted by distance.
-      for (auto surfaces : {Impl::Surfaces::kOpaque, Impl::Surfaces::kBlended}) {
-        if (surfaces == Impl::Surfaces::kBlended && !d.any_blended) break;
-        base = 0;
-        for (std::size_t lod = 0; lod < plan.geometry.size() && lod < d.lods.size(); ++lod) {
-          const GLsizei count = static_cast<GLsizei>(plan.geometry[lod].size());
-          if (count == 0) continue;
-          glBindVertexArray(d.lods[lod].vao_geometry);
-          d.draw_lod(d.shade_geometry, static_cast<int>(lod), count, base, surfaces);
-          base += static_cast<GLuint>(count);
-        }
+      // over them, back to front (the triangles within one character are not sorted).
+      for (std::size_t lod = 0; lod < plan.geometry.size() && lod < d.lods.size(); ++lod) {
+        const GLsizei count = static_cast<GLsizei>(plan.geometry[lod].size());
+        if (count == 0) continue;
+        glBindVertexArray(d.lods[lod].vao_geometry);
+        d.draw_lod(d.shade_geometry, static_cast<int>(lod), count, base, Impl::Surfaces::kOpaque);
+        base += static_cast<GLuint>(count);
+      }
+      for (std::size_t b = 0; d.any_blended && b < n_instances;) {
+        const int lod = d.instance_lod[d.blend_order[b]];
+        std::size_t e = b + 1;
+        while (e < n_instances && d.instance_lod[d.blend_order[e]] == lod) ++e;
+        glBindVertexArray(d.lods[static_cast<std::size_t>(lod)].vao_geometry);
+        d.draw_lod(d.shade_geometry, lod, static_cast<GLsizei>(e - b), static_cast<GLuint>(n_instances + b),
+                   Impl::Surfaces::kBlended);
+        b = e;
       }
     }
   }

@@ -1087,6 +1087,62 @@ TEST(CrowdRender, BlendedSurfacesLieOverTheOpaqueOnes) {
   }
 }
 
+// Alpha-blended surfaces of different characters lie over each other back to front, whatever the
+// crowd's order. Two half-alpha white squares: A facing the camera and light (lit 182), B 1.5 m behind
+// it and turned 60 degrees away (lit darker). Where both cover a pixel, the frame must be A over B,
+// premultiplied: A + (1 - 0.5) B, from the frames of each alone (within 3 levels), in the geometry
+// frame and in the impostors' (sorted quads). B over A differs there by over 20 levels, so a pass in
+// the crowd's order fails with A listed first.
+TEST(CrowdRender, BlendedSurfacesOfCharactersLieBackToFront) {
+  REQUIRE_GL();
+  Model m = square_model();
+  m.materials[0].base_color = glm::vec4(1.0f, 1.0f, 1.0f, 0.5f);
+  m.materials[0].alpha_blend = true;
+  m.bake(30.0f);
+  const ImpostorConfig cfg = SquareScene::fresh();
+  FramePlanner planner(m, cfg);
+  auto r = Renderer::create(m, cfg);
+  ASSERT_TRUE(r.ok()) << r.error().message();
+  auto t = OffscreenTarget::create(128, 128, 4);
+  ASSERT_TRUE(t.ok());
+  SceneCamera cam;
+  cam.width = cam.height = 128;
+  cam.target = m.ta;
+  cam.eye = m.ta + glm::vec3(0, 0, cam.pixels_per_metre(1.0f) / 60.0f);
+  const Character a{}, b{glm::vec3(0.0f, 0.0f, -1.5f), glm::radians(-60.0f)};
+  auto frame = [&](std::vector<Character> chars, RenderMode mode) {
+    Crowd crowd(m);
+    for (const Character& c : chars) crowd.add(c);
+    (*t)->bind(true);
+    (*r)->draw(planner.plan(crowd, cam, 0.0f, mode), DrawOptions{});
+    return (*t)->read_rgba();
+  };
+  for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) {
+    const char* path = mode == RenderMode::kGeometry ? "geometry" : "impostor";
+    const auto pa = frame({a}, mode), pb = frame({b}, mode);
+    for (bool a_first : {true, false}) {
+      const auto both = a_first ? frame({a, b}, mode) : frame({b, a}, mode);
+      int overlap = 0, a_over_b = 0, distinct = 0;
+      for (std::size_t i = 0; i < both.size(); i += 4) {
+        // Whole pixels of both squares (half alpha each), away from their edges.
+        if (std::abs(pa[i + 3] - 128) > 2 || std::abs(pb[i + 3] - 128) > 2) continue;
+        ++overlap;
+        bool ok = std::abs(both[i + 3] - 191) <= 3;
+        for (int k = 0; k < 3; ++k) {
+          ok = ok && std::abs(both[i + k] - (pa[i + k] + pb[i + k] / 2.0)) <= 3.0;
+          distinct += k == 0 && std::abs((pa[i] + pb[i] / 2.0) - (pb[i] + pa[i] / 2.0)) > 20.0;
+        }
+        a_over_b += ok;
+      }
+      std::printf("%s, %s listed first: %d pixels of both squares, %d of them A over B, %d where B over A differs\n", path,
+                  a_first ? "A" : "B", overlap, a_over_b, distinct);
+      EXPECT_GT(overlap, 400) << path;
+      EXPECT_EQ(distinct, overlap) << path;
+      EXPECT_GE(a_over_b, overlap - overlap / 100) << path << (a_first ? ", A first" : ", B first");
+    }
+  }
+}
+
 // A material's sampler decides how the texture is read outside [0, 1] and when magnified. The square's u
 // runs from -1 to 2 across it over a texture of two texels (blue, red); read with the nearest texel, the
 // middle row crosses bands of pure colour: one change of colour with clamp-to-edge (blue up to u = 0.5,
