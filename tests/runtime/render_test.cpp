@@ -401,8 +401,18 @@ Model square_model() {
 
 // `m` alone, fresh (both thresholds 0; `cfg` may change the rest), drawn into a 128 x 128 target at 4x MSAA, a square_model about
 // 60 pixels wide: frame() draws one path and gives its RGBA pixels.
+// A 128x128 camera looking down -Z at the model's Ta, from where a metre there spans `pixels`.
+SceneCamera square_camera(const Model& m, float pixels) {
+  SceneCamera cam;
+  cam.width = cam.height = 128;
+  cam.target = m.ta;
+  cam.eye = m.ta + glm::vec3(0, 0, cam.pixels_per_metre(1.0f) / pixels);
+  return cam;
+}
+
 struct SquareScene {
-  explicit SquareScene(const Model& model, const ImpostorConfig& cfg = fresh()) : m(model), crowd(model), planner(model, cfg) {
+  explicit SquareScene(const Model& model, const ImpostorConfig& cfg = fresh(), float pixels_per_metre = 60.0f)
+      : m(model), config(cfg), crowd(model), planner(model, cfg), cam(square_camera(model, pixels_per_metre)) {
     crowd.add(Character{});
     auto r = Renderer::create(m, cfg);
     EXPECT_TRUE(r.ok()) << r.error().message();
@@ -410,9 +420,6 @@ struct SquareScene {
     auto t = OffscreenTarget::create(128, 128, 4);
     EXPECT_TRUE(t.ok());
     if (t.ok()) target = std::move(*t);
-    cam.width = cam.height = 128;
-    cam.target = m.ta;
-    cam.eye = m.ta + glm::vec3(0, 0, cam.pixels_per_metre(1.0f) / 60.0f);
   }
   static ImpostorConfig fresh() {
     ImpostorConfig cfg;
@@ -426,7 +433,21 @@ struct SquareScene {
     renderer->draw(planner.plan(crowd, cam, 0.0f, mode), o);
     return target->read_rgba();
   }
+  // A frame of a crowd of these characters, in this order, with snapshots of their own (and its
+  // plan's figures in `stats`).
+  std::vector<std::uint8_t> frame_of(const std::vector<Character>& characters, RenderMode mode,
+                                     FrameStats* stats = nullptr) {
+    Crowd c(m);
+    for (const Character& ch : characters) c.add(ch);
+    FramePlanner p(m, config);
+    target->bind(true);
+    const FramePlan& plan = p.plan(c, cam, 0.0f, mode);
+    if (stats) *stats = plan.stats;
+    renderer->draw(plan);
+    return target->read_rgba();
+  }
   const Model& m;
+  ImpostorConfig config;
   Crowd crowd;
   FramePlanner planner;
   std::unique_ptr<Renderer> renderer;
@@ -533,10 +554,7 @@ TEST(ImpostorEdges, TwoTapsNearlyMatchFourAtOneTexelPerPixel) {
   crowd.add(Character{});  // a square turned 30 degrees on screen
   auto target = OffscreenTarget::create(128, 128, 4);
   ASSERT_TRUE(target.ok());
-  SceneCamera cam;
-  cam.width = cam.height = 128;
-  cam.target = m.ta;
-  cam.eye = m.ta + glm::vec3(0, 0, cam.pixels_per_metre(1.0f) / 60.0f);
+  const SceneCamera cam = square_camera(m, 60.0f);
   std::vector<std::uint8_t> geometry;
   double psnr[5] = {};
   for (int taps : {0, 1, 2, 4}) {  // 0: the geometry frame
@@ -581,26 +599,14 @@ TEST(ImpostorEdges, TwoTapsNearlyMatchFourAtOneTexelPerPixel) {
 TEST(ImpostorEdges, BlendingIsBackToFront) {
   REQUIRE_GL();
   Model m = square_model();
-  ImpostorConfig cfg;
-  auto renderer = Renderer::create(m, cfg);
-  ASSERT_TRUE(renderer.ok()) << renderer.error().message();
-  auto target = OffscreenTarget::create(128, 128, 4);
-  ASSERT_TRUE(target.ok());
-  SceneCamera cam;
-  cam.width = cam.height = 128;
-  cam.target = m.ta;
-  cam.eye = m.ta + glm::vec3(0, 0, cam.pixels_per_metre(1.0f) / 40.0f);
+  SquareScene scene(m, ImpostorConfig{}, 40.0f);
+  ASSERT_TRUE(scene.ok());
   const Character near_one{glm::vec3(0.4f, 0.0f, 1.0f)}, far_one{};
   auto frame = [&](const Character& first, const Character& second) {
-    Crowd crowd(m);
-    crowd.add(first);
-    crowd.add(second);
-    FramePlanner planner(m, cfg);
-    (*target)->bind(true);
-    const FramePlan& p = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
-    EXPECT_EQ(p.stats.impostors, 2);
-    (*renderer)->draw(p);
-    return (*target)->read_rgba();
+    FrameStats stats;
+    auto px = scene.frame_of({first, second}, RenderMode::kImpostor, &stats);
+    EXPECT_EQ(stats.impostors, 2);
+    return px;
   };
   const auto a = frame(near_one, far_one), b = frame(far_one, near_one);
   int differ = 0, overlap = 0;
@@ -627,10 +633,7 @@ TEST(ImpostorEdges, BlendedImpostorsAloneNeedNoMultisampledTarget) {
   ImpostorConfig cfg;
   auto renderer = Renderer::create(m, cfg);
   ASSERT_TRUE(renderer.ok()) << renderer.error().message();
-  SceneCamera cam;
-  cam.width = cam.height = 128;
-  cam.target = m.ta;
-  cam.eye = m.ta + glm::vec3(0, 0, cam.pixels_per_metre(1.0f) / 40.0f);
+  const SceneCamera cam = square_camera(m, 40.0f);
   Crowd crowd(m);
   crowd.add(Character{glm::vec3(0.4f, 0.0f, 1.0f)});
   crowd.add(Character{});
@@ -1099,24 +1102,10 @@ TEST(CrowdRender, BlendedSurfacesOfCharactersLieBackToFront) {
   m.materials[0].base_color = glm::vec4(1.0f, 1.0f, 1.0f, 0.5f);
   m.materials[0].alpha_blend = true;
   m.bake(30.0f);
-  const ImpostorConfig cfg = SquareScene::fresh();
-  FramePlanner planner(m, cfg);
-  auto r = Renderer::create(m, cfg);
-  ASSERT_TRUE(r.ok()) << r.error().message();
-  auto t = OffscreenTarget::create(128, 128, 4);
-  ASSERT_TRUE(t.ok());
-  SceneCamera cam;
-  cam.width = cam.height = 128;
-  cam.target = m.ta;
-  cam.eye = m.ta + glm::vec3(0, 0, cam.pixels_per_metre(1.0f) / 60.0f);
+  SquareScene scene(m);
+  ASSERT_TRUE(scene.ok());
   const Character a{}, b{glm::vec3(0.0f, 0.0f, -1.5f), glm::radians(-60.0f)};
-  auto frame = [&](std::vector<Character> chars, RenderMode mode) {
-    Crowd crowd(m);
-    for (const Character& c : chars) crowd.add(c);
-    (*t)->bind(true);
-    (*r)->draw(planner.plan(crowd, cam, 0.0f, mode), DrawOptions{});
-    return (*t)->read_rgba();
-  };
+  auto frame = [&](const std::vector<Character>& chars, RenderMode mode) { return scene.frame_of(chars, mode); };
   for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) {
     const char* path = mode == RenderMode::kGeometry ? "geometry" : "impostor";
     const auto pa = frame({a}, mode), pb = frame({b}, mode);
