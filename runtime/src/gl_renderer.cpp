@@ -1387,6 +1387,7 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
         d.blend_depth[i] = -glm::dot(centre - plan.camera.eye, fwd);
       }
       d.depth_order.sort(d.blend_depth, d.blend_order);
+      d.instance_scratch.reserve(2 * n_instances);
       for (std::size_t k = 0; k < n_instances; ++k) d.instance_scratch.push_back(d.instance_scratch[d.blend_order[k]]);
     }
     if (n_instances > 0) {
