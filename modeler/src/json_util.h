@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -71,24 +72,43 @@ inline const json& array(const json& j, const std::string& path) {
   return j;
 }
 
-// Parses text, turning syntax errors into "line L, column C" places.
+// nlohmann's DOM builder, keeping the byte offset where parsing stopped: a number beyond double's range
+// ("1e400") is an out_of_range exception, which does not carry the offset its syntax errors do.
+struct DomBuilder : nlohmann::detail::json_sax_dom_parser<json> {
+  std::size_t stop = 0;
+  explicit DomBuilder(json& j) : json_sax_dom_parser<json>(j, true) {}
+  template <class Exception>
+  bool parse_error(std::size_t byte, const std::string& token, const Exception& ex) {
+    stop = byte;
+    return json_sax_dom_parser<json>::parse_error(byte, token, ex);
+  }
+};
+
+// Parses text, turning syntax errors (and numbers out of range) into "line L, column C" places.
 inline json parse_text(std::string_view text) {
+  json doc;
+  DomBuilder builder(doc);
   try {
-    return json::parse(text.begin(), text.end());
-  } catch (const json::parse_error& e) {
+    json::sax_parse(text.begin(), text.end(), &builder);
+    return doc;
+  } catch (const json::exception& e) {
     // Translate the byte offset into line and column.
     size_t line = 1, col = 1;
-    for (size_t i = 0; i + 1 < e.byte && i < text.size(); ++i) {
+    for (size_t i = 0; i + 1 < builder.stop && i < text.size(); ++i) {
       if (text[i] == '\n') { ++line; col = 1; } else { ++col; }
     }
     std::string what = e.what();
     auto p = what.find("syntax error");
+    if (p == std::string::npos && (p = what.find("] ")) != std::string::npos) p += 2;  // past "[json.exception...] "
     fail("line " + std::to_string(line) + ", column " + std::to_string(col),
          "invalid JSON: " + (p == std::string::npos ? what : what.substr(p)));
   }
 }
 
 inline Result<std::string> read_file(const std::string& path) {
+  // A directory opens and reads as an empty file: say what it is ("skeleton": "" names the body's folder).
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) return Error{path, "", "is a directory, not a file"};
   std::ifstream in(path, std::ios::binary);
   if (!in) return Error{path, "", "cannot open file (does it exist?)"};
   std::ostringstream ss;

@@ -46,6 +46,16 @@ float to_float(std::string_view s, int line, const char* what) {
   return v;
 }
 
+// Offsets and channel values are lengths (any unit) or degrees: beyond this they are damage, and they
+// would overflow the forward kinematics (an OFFSET of 1e30 makes every retargeted posture NaN).
+constexpr float kMaxValue = 1e6f;
+float to_value(std::string_view s, int line, const char* what) {
+  const float v = to_float(s, line, what);
+  if (!(std::abs(v) <= kMaxValue))
+    throw ParseError{line, std::string(what) + " " + std::string(s) + " is out of range (at most 1e6 in size)"};
+  return v;
+}
+
 int channel_of(std::string_view s) {
   static const char* names[] = {"Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation"};
   for (int i = 0; i < 6; ++i)
@@ -78,13 +88,15 @@ Result<BvhFile> parse_bvh(std::string_view text, std::string_view file) {
       }
       if (lx.next() != "{") throw ParseError{lx.line, "expected '{' after " + j.name};
       if (lx.next() != "OFFSET") throw ParseError{lx.line, "expected OFFSET in " + j.name};
-      for (int k = 0; k < 3; ++k) j.offset[k] = to_float(lx.next(), lx.line, "OFFSET");
+      for (int k = 0; k < 3; ++k) j.offset[k] = to_value(lx.next(), lx.line, "OFFSET");
       tok = lx.next();
       if (!j.end_site) {
         if (tok != "CHANNELS") throw ParseError{lx.line, "expected CHANNELS in " + j.name};
         std::string_view n = lx.next();
-        int count = static_cast<int>(to_float(n, lx.line, "the channel count"));
-        if (count < 0 || count > 6) throw ParseError{lx.line, "channel count must be 0..6, got " + std::string(n)};
+        const float count_f = to_float(n, lx.line, "the channel count");
+        if (!(count_f >= 0 && count_f <= 6) || count_f != std::floor(count_f))
+          throw ParseError{lx.line, "channel count must be 0..6, got " + std::string(n)};
+        const int count = static_cast<int>(count_f);
         j.first_channel = channels;
         for (int c = 0; c < count; ++c) {
           std::string_view cn = lx.next();
@@ -109,17 +121,22 @@ Result<BvhFile> parse_bvh(std::string_view text, std::string_view file) {
     }
     out.channel_count = channels;
     if (tok != "MOTION") throw ParseError{lx.line, "expected MOTION after the hierarchy"};
+    // Without channels a frame holds nothing, so nothing would bound the frame count.
+    if (channels == 0) throw ParseError{lx.line, "no joint has channels: the file holds no motion"};
     if (lx.next() != "Frames:") throw ParseError{lx.line, "expected \"Frames:\""};
     std::string_view nf = lx.next();
     float frames_f = to_float(nf, lx.line, "the frame count");
     if (frames_f < 1 || frames_f != std::floor(frames_f)) throw ParseError{lx.line, "frame count must be a positive integer"};
+    if (frames_f >= 2147483648.0f) throw ParseError{lx.line, "frame count " + std::string(nf) + " is too large"};
     int frames = static_cast<int>(frames_f);
     if (lx.next() != "Frame" || lx.next() != "Time:") throw ParseError{lx.line, "expected \"Frame Time:\""};
     out.frame_time = to_float(lx.next(), lx.line, "the frame time");
     if (!(out.frame_time > 0)) throw ParseError{lx.line, "frame time must be positive"};
-    out.frames.resize(frames);
+    if (!(out.frame_time >= 1e-6f && out.frame_time <= 1e6f))
+      throw ParseError{lx.line, "frame time must be from 1e-6 to 1e6 seconds"};
+    // Frames are added as they are read: the count is a claim, and a damaged one must not allocate.
     for (int f = 0; f < frames; ++f) {
-      out.frames[f].resize(channels);
+      out.frames.emplace_back(channels);
       int line = 0;
       for (int c = 0; c < channels; ++c) {
         std::string_view v = lx.next();
@@ -127,7 +144,7 @@ Result<BvhFile> parse_bvh(std::string_view text, std::string_view file) {
         if (v.empty())
           throw ParseError{lx.line, "file ends in frame " + std::to_string(f + 1) + " of " + std::to_string(frames) +
                                         " (truncated?)"};
-        out.frames[f][c] = to_float(v, lx.line, "a channel value");
+        out.frames[f][c] = to_value(v, lx.line, "a channel value");
       }
       // A frame is one line: more or fewer values there is a wrong channel count.
       size_t save = lx.pos;
@@ -432,7 +449,8 @@ Result<Clip> retarget(const BvhFile& bvh, const modeler::Skeleton& sk, const std
   float bvh_leg = glm::length(bpos[bl_hip] - bpos[bl_ankle]);
   auto rest = sk.world_transforms(sk.neutral());
   float our_leg = glm::length(glm::vec3(rest[sk.find_joint("l_hip")][3] - rest[sk.find_joint("l_ankle")][3]));
-  if (!(bvh_leg > 0)) return Error{std::string(file), "HIERARCHY", "the BVH leg has no length"};
+  // (In any unit a leg is longer than this; a shorter one would scale the root's travel past float's range.)
+  if (!(bvh_leg > 1e-6f)) return Error{std::string(file), "HIERARCHY", "the BVH leg has no length"};
   float scale = our_leg / bvh_leg;
   // Ground: the lowest ankle in the first frame sits where ours does in the neutral posture.
   bvh_fk(&bvh.frames[0]);

@@ -3,6 +3,7 @@
 // counts, finiteness, hierarchy loops.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -31,11 +32,23 @@ std::string idx(const char* array, int i) { return std::string("$.") + array + "
 
 // tinygltf's image callback: WebP (EXT_texture_webp) through libwebp, anything else through tinygltf's
 // own stb_image loader. Without it a file with a WebP image failed to load at all, even one that
-// offers a PNG beside it.
+// offers a PNG beside it. `user_data` is the model being loaded: tinygltf 2.7 hands over an image's buffer
+// view without checking that it lies within its buffer, so that is checked here before a byte is read.
 bool load_image(tg::Image* image, const int image_idx, std::string* err, std::string* warn, int req_width, int req_height,
                 const unsigned char* bytes, int size, void* user_data) {
+  if (const auto* m = static_cast<const tg::Model*>(user_data); m && image->bufferView >= 0) {
+    // tinygltf checked the view's and its buffer's indices.
+    const tg::BufferView& bv = m->bufferViews[image->bufferView];
+    const std::size_t have = m->buffers[bv.buffer].data.size();
+    if (bv.byteOffset > have || bv.byteLength > have - bv.byteOffset || bv.byteLength > 0x7fffffffu) {
+      if (err) *err += idx("bufferViews", image->bufferView) + ": byte range [" + std::to_string(bv.byteOffset) + ", " +
+                       std::to_string(bv.byteOffset + bv.byteLength) + ") of image " + std::to_string(image_idx) +
+                       " lies outside its buffer of " + std::to_string(have) + " bytes\n";
+      return false;
+    }
+  }
   const bool webp = size >= 12 && std::memcmp(bytes, "RIFF", 4) == 0 && std::memcmp(bytes + 8, "WEBP", 4) == 0;
-  if (!webp) return tg::LoadImageData(image, image_idx, err, warn, req_width, req_height, bytes, size, user_data);
+  if (!webp) return tg::LoadImageData(image, image_idx, err, warn, req_width, req_height, bytes, size, nullptr);
   int w = 0, h = 0;
   std::uint8_t* rgba = size > 0 ? WebPDecodeRGBA(bytes, static_cast<std::size_t>(size), &w, &h) : nullptr;
   if (!rgba || w <= 0 || h <= 0) {
@@ -52,6 +65,30 @@ bool load_image(tg::Image* image, const int image_idx, std::string* err, std::st
   image->pixel_type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
   image->image.assign(rgba, rgba + static_cast<std::size_t>(w) * static_cast<std::size_t>(h) * 4);
   WebPFree(rgba);
+  return true;
+}
+
+// tinygltf's file callbacks, for the files a .gltf names (buffers, images), taking regular files only. Its own
+// take a directory (a uri of "" or ".") for a file of 2^63 - 1 bytes and try to allocate that, and wait
+// forever on a FIFO.
+bool file_exists(const std::string& path, void*) {
+  std::error_code ec;
+  return std::filesystem::is_regular_file(path, ec);
+}
+bool read_whole_file(std::vector<unsigned char>* out, std::string* err, const std::string& path, void*) {
+  std::error_code ec;
+  const std::uintmax_t size = std::filesystem::is_regular_file(path, ec) ? std::filesystem::file_size(path, ec) : 0;
+  std::ifstream in;
+  if (!ec && size > 0) in.open(path, std::ios::binary);
+  if (ec || size == 0 || !in) {
+    if (err) *err += "cannot read " + path + " (not a file, or empty)\n";
+    return false;
+  }
+  out->resize(size);
+  if (!in.read(reinterpret_cast<char*>(out->data()), static_cast<std::streamsize>(size))) {
+    if (err) *err += "cannot read " + path + "\n";
+    return false;
+  }
   return true;
 }
 
@@ -335,7 +372,8 @@ struct Builder {
     float rotation = 0.0f;
     if (x.Get("rotation").IsNumber() && std::isfinite(x.Get("rotation").GetNumberAsDouble()))
       rotation = static_cast<float>(x.Get("rotation").GetNumberAsDouble());
-    if (x.Get("texCoord").IsNumber()) r.set = std::clamp(static_cast<int>(x.Get("texCoord").GetNumberAsDouble()), 0, 7);
+    if (x.Get("texCoord").IsNumber())  // clamped before the conversion, which 1e30 would overflow
+      r.set = static_cast<int>(std::clamp(x.Get("texCoord").GetNumberAsDouble(), 0.0, 7.0));
     // translation * rotation * scale, column-major as the extension's GLSL.
     const glm::mat3 t(1, 0, 0, 0, 1, 0, offset.x, offset.y, 1);
     const glm::mat3 rot(std::cos(rotation), std::sin(rotation), 0, -std::sin(rotation), std::cos(rotation), 0, 0, 0, 1);
@@ -767,8 +805,10 @@ struct Builder {
           const tg::Value& ids = it->second.Get("ids");
           std::vector<double> v = number_array(ids);
           for (std::size_t k = 0; k < v.size(); ++k) {
-            int id = static_cast<int>(v[k]);
-            if (v[k] != id || id < 0 || id >= static_cast<int>(m.nodes.size()) || m.nodes[id].mesh < 0)
+            // (Range first: converting 1e30 to int is undefined.)
+            const bool node = v[k] >= 0 && v[k] < static_cast<double>(m.nodes.size()) && v[k] == std::floor(v[k]);
+            const int id = node ? static_cast<int>(v[k]) : -1;
+            if (!node || m.nodes[id].mesh < 0)
               return c.err(idx("nodes", g) + ".extensions.MSFT_lod.ids[" + std::to_string(k) + "]",
                            "is not a node with a mesh");
             b.lod_nodes.push_back(id);
@@ -915,6 +955,49 @@ std::optional<std::vector<unsigned char>> glb_without_fallback_lengths(const std
   return out;
 }
 
+// tinygltf 2.7 checks that the BIN chunk's payload fits in the file's declared length but forgets the chunk's
+// 8-byte header, so a chunk length up to 8 bytes too large (with a buffer as long) reads past the end of the
+// file's bytes. The rest of the container it checks itself.
+Status check_glb_chunks(const std::vector<unsigned char>& glb, const std::string& path) {
+  if (glb.size() < 20 || std::memcmp(glb.data(), "glTF", 4) != 0) return Ok{};  // tinygltf says what is wrong
+  auto u32 = [&](std::uint64_t at) {
+    std::uint32_t v;
+    std::memcpy(&v, glb.data() + at, 4);
+    return std::uint64_t{v};
+  };
+  const std::uint64_t length = std::min<std::uint64_t>(u32(8), glb.size());
+  const std::uint64_t bin_at = 20 + u32(12);  // the BIN chunk's header
+  if (bin_at + 8 > length) return Ok{};        // no BIN chunk, or no room for one: tinygltf's to judge
+  if (bin_at + 8 + u32(bin_at) > length)
+    return Error{path, "byte " + std::to_string(bin_at),
+                 "the BIN chunk's length " + std::to_string(u32(bin_at)) + " runs past the end of the file (" +
+                     std::to_string(length) + " bytes)"};
+  return Ok{};
+}
+
+// tinygltf walks the parsed JSON recursively (extras and extensions may hold any value), so a document
+// nested thousands deep overflows the stack inside it. Returns the offset in `text` of the bracket that nests
+// deeper than kMaxJsonDepth, if any. (Exact for valid JSON; tinygltf rejects invalid JSON before walking it.)
+constexpr int kMaxJsonDepth = 256;
+std::optional<std::size_t> too_deep(const unsigned char* text, std::size_t n) {
+  int depth = 0;
+  bool in_string = false;
+  for (std::size_t i = 0; i < n; ++i) {
+    const unsigned char ch = text[i];
+    if (in_string) {
+      if (ch == '\\') ++i;
+      else if (ch == '"') in_string = false;
+    } else if (ch == '"') {
+      in_string = true;
+    } else if (ch == '[' || ch == '{') {
+      if (++depth > kMaxJsonDepth) return i;
+    } else if (ch == ']' || ch == '}') {
+      --depth;
+    }
+  }
+  return std::nullopt;
+}
+
 // The extensions this loader reads; a file that requires any other is refused by name.
 // (KHR_meshopt_compression is not: its vertex data is in meshopt's version 1 format, which meshoptimizer
 // 0.18, Debian 12's, cannot decode.)
@@ -1012,6 +1095,27 @@ Status decode_meshopt(tg::Model& m, const Ctx& c) {
   return Ok{};
 }
 
+// Model::bake keeps palette.size() * 3 vec4 per frame of every clip at the bake rate. A damaged key time (1e30 s)
+// would overflow its frame count, or ask for terabytes and minutes: at most 2^20 frames and 1 GiB in all.
+Status check_bake_size(const Model& model, float bake_rate, const std::string& path) {
+  const double rate = bake_rate > 0.0f ? bake_rate : 60.0;  // as bake() takes it
+  double frames = 0.0, longest = -1.0;
+  int longest_clip = 0;
+  for (std::size_t i = 0; i < model.clips.size(); ++i) {
+    const double d = model.clips[i].duration;
+    frames += d > 0.0 ? std::ceil(d * rate) + 1.0 : 1.0;
+    if (d > longest) longest = d, longest_clip = static_cast<int>(i);
+  }
+  const double bytes = frames * static_cast<double>(model.palette.size()) * 3.0 * sizeof(glm::vec4);
+  if (frames <= double(1 << 20) && bytes <= double(1 << 30)) return Ok{};
+  char text[200];
+  std::snprintf(text, sizeof text,
+                "lasts %g s: baking the clips at %g frames per second takes %.0f frames of %zu matrices, more than "
+                "the 2^20 frames or 1 GiB this loader takes",
+                longest, rate, frames, model.palette.size());
+  return Error{path, idx("animations", longest_clip), text};
+}
+
 }  // namespace
 
 Result<Model> load_model(const std::string& path, const LoadOptions& options) {
@@ -1023,23 +1127,37 @@ Result<Model> load_model(const std::string& path, const LoadOptions& options) {
   if (size < 2) return Error{path, "", "file is empty or too short to be glTF"};
   tg::Model gm;
   tg::TinyGLTF loader;
-  loader.SetImageLoader(load_image, nullptr);
+  loader.SetImageLoader(load_image, &gm);
+  loader.SetFsCallbacks(tg::FsCallbacks{file_exists, tg::ExpandFilePath, read_whole_file, tg::WriteWholeFile, nullptr});
   std::string err, warn;
   bool ok = false;
   const bool binary = fs::path(path).extension() == ".glb" || fs::path(path).extension() == ".GLB";
+  if (size > 0xffffffffu) return Error{path, "", "file is larger than 4 GiB, the most glTF can be"};
   try {
+    std::vector<unsigned char> bytes(size);
+    std::ifstream in(path, std::ios::binary);
+    if (!in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(size)))
+      return Error{path, "", "cannot read the file"};
+    const std::string base = fs::path(path).parent_path().string();
     if (binary) {
-      std::vector<unsigned char> bytes(size);
-      std::ifstream in(path, std::ios::binary);
-      if (!in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(size)))
-        return Error{path, "", "cannot read the file"};
       if (auto patched = glb_without_fallback_lengths(bytes)) bytes = std::move(*patched);
       if (bytes.size() > 0xffffffffu) return Error{path, "", "file is larger than 4 GiB, the most a .glb can be"};
-      const std::string base = fs::path(path).parent_path().string();
-      ok = loader.LoadBinaryFromMemory(&gm, &err, &warn, bytes.data(), static_cast<unsigned int>(bytes.size()), base);
-    } else {
-      ok = loader.LoadASCIIFromFile(&gm, &err, &warn, path);
+      if (auto s = check_glb_chunks(bytes, path); !s) return s.error();
     }
+    // The JSON: the whole .gltf, or as much of a .glb's first chunk as the file holds.
+    std::size_t json_at = 0, json_len = bytes.size();
+    if (binary) {
+      std::uint32_t len = 0;
+      if (bytes.size() >= 20) std::memcpy(&len, bytes.data() + 12, 4);
+      json_at = std::min<std::size_t>(20, bytes.size());
+      json_len = std::min<std::size_t>(len, bytes.size() - json_at);
+    }
+    if (auto at = too_deep(bytes.data() + json_at, json_len))
+      return Error{path, "byte " + std::to_string(json_at + *at),
+                   "the JSON nests deeper than " + std::to_string(kMaxJsonDepth) + " levels"};
+    const auto n = static_cast<unsigned int>(bytes.size());
+    if (binary) ok = loader.LoadBinaryFromMemory(&gm, &err, &warn, bytes.data(), n, base);
+    else ok = loader.LoadASCIIFromString(&gm, &err, &warn, reinterpret_cast<const char*>(bytes.data()), n, base);
   } catch (const std::exception& e) {
     return Error{path, "", std::string("parse error: ") + e.what()};
   } catch (...) {
@@ -1061,6 +1179,7 @@ Result<Model> load_model(const std::string& path, const LoadOptions& options) {
     if (auto s = b.samplers(); !s) return s.error();
     if (auto s = b.meshes(); !s) return s.error();
     if (auto s = b.animations(); !s) return s.error();
+    if (auto s = check_bake_size(model, options.bake_rate, path); !s) return s.error();
   } catch (const std::exception& e) {
     return Error{path, "", std::string("cannot build the model: ") + e.what()};
   }

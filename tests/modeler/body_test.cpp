@@ -101,7 +101,11 @@ INSTANTIATE_TEST_SUITE_P(
                 "$.primitives[0].rotation_deg[1]", "[-360, 360] degrees"},
         BadBody{R"({"name": "x", "sample_posture": "dance", "primitives": [{"type": "metaball",
                  "joint": "l_elbow", "center": [0,0,0], "radii": [1,1,1]}]})",
-                "$.sample_posture", "unknown posture"}),
+                "$.sample_posture", "unknown posture"},
+        // Found by body_fuzz_test.cpp: nlohmann throws out_of_range (not parse_error) for a number beyond
+        // double's range, which escaped parse_body (std::terminate in the CLI).
+        BadBody{"{\"name\": \"x\",\n \"primitives\": [{\"center\": [0, 1e400, 0]}]}", "line 2, column 36",
+                "invalid JSON: number overflow parsing '1e400'"}),
     [](const auto& param_info) { return "case" + std::to_string(param_info.index); });
 
 TEST(Body, MissingSkeletonFileIsNamed) {
@@ -109,4 +113,14 @@ TEST(Body, MissingSkeletonFileIsNamed) {
   ASSERT_FALSE(r);
   EXPECT_EQ(r.error().file, "/tmp/nope.json");
   EXPECT_NE(r.error().where.find("body.json"), std::string::npos);
+}
+
+// Found by body_fuzz_test.cpp: a "skeleton" naming a folder ("" or "..") read as an empty file, and the error
+// named the folder, not the body.
+TEST(Body, SkeletonNamingAFolderIsNamed) {
+  auto r = parse_body(R"({"name": "x", "skeleton": "", "primitives": []})", "body.json", "/tmp");
+  ASSERT_FALSE(r);
+  EXPECT_EQ(r.error().file, "/tmp/");
+  EXPECT_EQ(r.error().where, "(referenced from body.json $.skeleton)");
+  EXPECT_EQ(r.error().reason, "is a directory, not a file");
 }

@@ -69,6 +69,36 @@ TEST(Bvh, MalformedFilesNameTheLineAndReason) {
   EXPECT_NE(missing.error().message().find("/nonexistent.bvh"), std::string::npos);
 }
 
+// Found by bvh_fuzz_test.cpp and in the code it pointed at: counts that overflowed an int (undefined
+// behaviour) or allocated what the file claimed (2e9 frames: 48 GB, then std::terminate), a frame count that
+// nothing bounded (no channels: a hang), and offsets, values and frame times that gave NaN postures and an
+// infinite frame rate. Now errors.
+TEST(Bvh, DamagedCountsAndOutOfRangeNumbersAreErrors) {
+  std::string t = kTiny;
+  auto with = [&](std::string text, const char* from, const char* to) {
+    return text.replace(text.find(from), std::strlen(from), to);
+  };
+  const std::string no_channels =
+      with(with(t, "CHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation", "CHANNELS 0"),
+           "CHANNELS 3 Zrotation Xrotation Yrotation", "CHANNELS 0");
+  std::vector<BadBvh> cases = {
+      {with(t, "Frames: 2", "Frames: 2000000000"), "line 21", "file ends in frame 3 of 2000000000"},
+      {with(t, "Frames: 2", "Frames: 1e30"), "line 17", "frame count 1e30 is too large"},
+      {with(t, "CHANNELS 3", "CHANNELS 1e30"), "line 9", "channel count must be 0..6, got 1e30"},
+      {with(t, "CHANNELS 3", "CHANNELS 2.5"), "line 9", "channel count must be 0..6"},
+      {with(no_channels, "Frames: 2", "Frames: 2000000000"), "line 16", "no joint has channels"},
+      {with(t, "OFFSET 1 0 0", "OFFSET 1e30 0 0"), "line 8", "OFFSET 1e30 is out of range"},
+      {with(t, "1 3 0 0 90", "1 3 0 0 1e30"), "line 20", "a channel value 1e30 is out of range"},
+      {with(t, "Frame Time: 0.5", "Frame Time: 1e-45"), "line 18", "frame time must be from 1e-6 to 1e6 seconds"},
+  };
+  for (const auto& c : cases) {
+    auto r = motion::parse_bvh(c.text, "bad.bvh");
+    ASSERT_FALSE(r) << c.reason;
+    EXPECT_EQ(r.error().where, c.where) << r.error().message();
+    EXPECT_NE(r.error().reason.find(c.reason), std::string::npos) << r.error().message();
+  }
+}
+
 TEST(Bvh, CmuClipsKeepTheirFramesAndRateAndWalk) {
   if (!std::filesystem::exists(data("131_01.bvh"))) GTEST_SKIP() << "../shared/data/bvh is absent";
   const auto& sk = modeler::default_skeleton();

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -545,6 +546,113 @@ TEST(GltfLoader, UnreadRequiredExtensionsAndBadSparseAccessorsAreErrors) {
     auto m = load_model(f.write("sparse"));
     ASSERT_FALSE(m.ok());
     EXPECT_EQ(m.error().where, c.where) << m.error().message();
+  }
+}
+
+
+// Found by gltf_loader_fuzz_test.cpp and in the code it pointed at: inputs that crashed, allocated 2^63 bytes
+// or read past a buffer inside tinygltf 2.7 or the loader, or converted an out-of-range number to int (undefined
+// behaviour). Each is now an error naming the file and the place (or, for the texture coordinate set, a clamp).
+TEST(GltfLoader, FuzzFindingsAreErrors) {
+  const std::vector<float> triangle{0, 0, 0, 1, 0, 0, 0, 1, 0};
+  auto read = [](const std::string& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  {  // JSON nested 100000 deep (in extras): tinygltf walks it recursively and overflowed the stack (SIGSEGV).
+    GltfFile f;
+    f.mesh({{"POSITION", f.accessor(f.view(triangle), kFloat, 3, "VEC3")}});
+    const std::string path = f.write("deep");
+    std::string text = read(path);
+    ASSERT_EQ(text[0], '{');
+    text.insert(1, "\"extras\": " + std::string(100000, '[') + "0" + std::string(100000, ']') + ",");
+    std::ofstream(path, std::ios::binary) << text;
+    auto m = load_model(path);
+    ASSERT_FALSE(m.ok());
+    EXPECT_EQ(m.error().file, path);
+    EXPECT_EQ(m.error().where, "byte 266");  // level 257: the 256th '[' (after '{' and 10 bytes of "extras": )
+    EXPECT_EQ(m.error().reason, "the JSON nests deeper than 256 levels");
+  }
+  {  // An image's buffer view past the end of its buffer: tinygltf hands its bytes over unchecked (SIGSEGV).
+    GltfFile f;
+    f.mesh({{"POSITION", f.accessor(f.view(triangle), kFloat, 3, "VEC3")}});
+    const int iv = f.view(std::vector<std::uint8_t>(8, 0));
+    f.j["bufferViews"][iv]["byteOffset"] = 1000000;
+    f.j["images"] = json::array({{{"bufferView", iv}, {"mimeType", "image/png"}}});
+    const std::string path = f.write("image_view_outside");
+    auto m = load_model(path);
+    ASSERT_FALSE(m.ok());
+    EXPECT_EQ(m.error().message(), path + ": $.bufferViews[1]: byte range [1000000, 1000008) of image 0 lies outside its "
+                                          "buffer of 44 bytes");
+  }
+  {  // A buffer uri naming a folder: tinygltf took it for a file of 2^63 - 1 bytes and allocated that.
+    GltfFile f;
+    f.mesh({{"POSITION", f.accessor(f.view(triangle), kFloat, 3, "VEC3")}});
+    const std::string path = f.write("uri_folder");
+    f.j["buffers"][0]["uri"] = ".";
+    std::ofstream(path) << f.j.dump(1);
+    auto m = load_model(path);
+    ASSERT_FALSE(m.ok());
+    EXPECT_EQ(m.error().file, path);
+    EXPECT_NE(m.error().reason.find("not found"), std::string::npos) << m.error().message();
+  }
+  {  // A .glb whose BIN chunk (and buffer) claim 8 bytes more than the file has: tinygltf forgets the chunk
+     // header in its check and read 8 bytes past the end.
+    json j = {{"asset", {{"version", "2.0"}}},
+              {"buffers", json::array({{{"byteLength", 44}}})},
+              {"bufferViews", json::array({{{"buffer", 0}, {"byteLength", 36}}})},
+              {"accessors", json::array({{{"bufferView", 0}, {"componentType", kFloat}, {"count", 3}, {"type", "VEC3"}}})},
+              {"meshes", json::array({{{"primitives", json::array({{{"attributes", {{"POSITION", 0}}}}})}}})},
+              {"nodes", json::array({{{"mesh", 0}}})}};
+    std::string text = j.dump();
+    while (text.size() % 4) text += ' ';
+    std::string glb = "glTF";
+    auto u32 = [&](std::uint32_t v) { glb.append(reinterpret_cast<const char*>(&v), 4); };
+    u32(2);
+    u32(static_cast<std::uint32_t>(12 + 8 + text.size() + 8 + 36));
+    u32(static_cast<std::uint32_t>(text.size()));
+    glb += "JSON" + text;
+    u32(44);  // 36 bytes follow
+    glb += std::string("BIN\0", 4);
+    glb.append(reinterpret_cast<const char*>(triangle.data()), 36);
+    const std::string path = (fs::temp_directory_path() / "bb_gltf_loader_test" / "bin_chunk_long.glb").string();
+    std::ofstream(path, std::ios::binary) << glb;
+    auto m = load_model(path);
+    ASSERT_FALSE(m.ok());
+    EXPECT_EQ(m.error().message(), path + ": byte " + std::to_string(20 + text.size()) +
+                                       ": the BIN chunk's length 44 runs past the end of the file (" +
+                                       std::to_string(glb.size()) + " bytes)");
+  }
+  {  // 1e30 as an MSFT_lod id and as KHR_texture_transform's texCoord: converted to int unchecked.
+    GltfFile f;
+    f.mesh({{"POSITION", f.accessor(f.view(triangle), kFloat, 3, "VEC3")}}, -1, 0);
+    f.j["materials"] = json::array(
+        {{{"pbrMetallicRoughness",
+           {{"baseColorTexture", {{"index", 0}, {"extensions", {{"KHR_texture_transform", {{"texCoord", 1e30}}}}}}}}}}});
+    const std::string path = f.write("huge_tex_coord");
+    auto m = load_model(path);
+    ASSERT_TRUE(m.ok()) << m.error().message();  // set 7, which the primitive does not have
+    f.j["nodes"][0]["extensions"] = {{"MSFT_lod", {{"ids", {1e30}}}}};
+    std::ofstream(path) << f.j.dump(1);
+    m = load_model(path);
+    ASSERT_FALSE(m.ok());
+    EXPECT_EQ(m.error().where, "$.nodes[0].extensions.MSFT_lod.ids[0]") << m.error().message();
+  }
+  // A damaged last key time: 1e30 s overflowed the baked frame count (undefined behaviour), 1e5 s baked six
+  // million frames (seconds of work and hundreds of MB for a 4-byte change).
+  for (const float last : {1e30f, 1e5f}) {
+    GltfFile f;
+    f.mesh({{"POSITION", f.accessor(f.view(triangle), kFloat, 3, "VEC3")}});
+    const int in = f.accessor(f.view(std::vector<float>{0, last}), kFloat, 2, "SCALAR");
+    const int out = f.accessor(f.view(std::vector<float>{0, 0, 0, 1, 0, 0}), kFloat, 2, "VEC3");
+    f.j["animations"] = json::array({{{"samplers", json::array({{{"input", in}, {"output", out}}})},
+                                      {"channels", json::array({{{"sampler", 0}, {"target", {{"node", 0}, {"path", "translation"}}}}})}}});
+    const std::string path = f.write("long_clip");
+    auto m = load_model(path);
+    ASSERT_FALSE(m.ok());
+    EXPECT_EQ(m.error().file, path);
+    EXPECT_EQ(m.error().where, "$.animations[0]");
+    EXPECT_NE(m.error().reason.find("frames"), std::string::npos) << m.error().message();
   }
 }
 
