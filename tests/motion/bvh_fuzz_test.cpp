@@ -8,13 +8,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
-#include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <iostream>
-#include <random>
-#include <set>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -22,16 +16,14 @@
 
 #include "bb/modeler/skeleton.h"
 #include "bb/motion/bvh.h"
+#include "fuzz.h"
 
 namespace bb::motion {
 namespace {
 
 namespace fs = std::filesystem;
-
-int iterations(int fallback) {
-  if (const char* s = std::getenv("BB_FUZZ_ITERATIONS"); s && std::atoi(s) > 0) return std::atoi(s);
-  return fallback;
-}
+namespace fuzz = bb::test::fuzz;
+using fuzz::Span;
 
 // Legs on both sides (so that retargeting runs), a spine, an arm; 4 frames.
 std::string hand_made(bool crlf) {
@@ -99,13 +91,14 @@ std::string first_frames(const std::string& text, int frames) {
   return out;
 }
 
-class Mutator {
+// Numbers that trouble a BVH reader besides the common ones: channel counts, big frame counts, hexadecimal,
+// a decimal comma, nothing at all, the float limits.
+const std::vector<const char*> kNumberTexts = fuzz::number_texts(
+    {"6", "7", "1e-39", "1e9", "100000000", "2.5", "0x10", "1,5", "", "3.4e38", "1e39", "0.0"});
+
+class Mutator : public fuzz::Random {
  public:
-  explicit Mutator(std::uint32_t seed) : rng_(seed) {}
-  std::size_t below(std::size_t n) { return n == 0 ? 0 : std::uniform_int_distribution<std::size_t>(0, n - 1)(rng_); }
-  bool chance(int percent) { return static_cast<int>(below(100)) < percent; }
-  template <class T, std::size_t N>
-  const T& pick(const T (&a)[N]) { return a[below(N)]; }
+  using Random::Random;
 
   void mutate(std::string& t) {
     switch (below(10)) {
@@ -122,11 +115,8 @@ class Mutator {
   }
 
  private:
-  std::mt19937 rng_;
-
-  struct Word { std::size_t at, n; };
-  static std::vector<Word> words(const std::string& t) {
-    std::vector<Word> w;
+  static std::vector<Span> words(const std::string& t) {
+    std::vector<Span> w;
     for (std::size_t i = 0; i < t.size();) {
       if (std::isspace(static_cast<unsigned char>(t[i]))) { ++i; continue; }
       std::size_t e = i;
@@ -144,8 +134,8 @@ class Mutator {
 
   // A number (an offset, a channel count, the frame count or time, a channel value) made troublesome.
   void number(std::string& t) {
-    std::vector<Word> nums, counts;  // counts: the words after CHANNELS, Frames: and Time:
-    const std::vector<Word> all = words(t);
+    std::vector<Span> nums, counts;  // counts: the words after CHANNELS, Frames: and Time:
+    const std::vector<Span> all = words(t);
     for (std::size_t k = 0; k < all.size(); ++k) {
       if (!is_number(t.substr(all[k].at, all[k].n))) continue;
       nums.push_back(all[k]);
@@ -154,32 +144,24 @@ class Mutator {
     }
     if (nums.empty()) return bytes(t);
     // The counts are few and the values many: aim at a count now and then.
-    const Word w = !counts.empty() && chance(35) ? counts[below(counts.size())] : nums[below(nums.size())];
-    const char* const texts[] = {"0",    "-1",   "1",          "6",          "7",          "1e30",       "-1e30",
-                                 "nan",  "inf",  "-inf",       "4294967295", "2147483647", "2147483648", "-2147483648",
-                                 "1e-45", "1e-39", "-0",       "1e9",        "100000000",  "2.5",        "0x10",
-                                 "1,5",  "",     "99999999999999999999999", "3.4e38", "1e39", "0.0"};
-    t.replace(w.at, w.n, pick(texts));
+    const Span w = !counts.empty() && chance(35) ? pick(counts) : pick(nums);
+    t.replace(w.at, w.n, pick(kNumberTexts));
   }
 
   void swap_words(std::string& t) {
-    std::vector<Word> w = words(t);
+    const std::vector<Span> w = words(t);
     if (w.size() < 2) return bytes(t);
-    Word a = w[below(w.size())], b = w[below(w.size())];
-    if (a.at > b.at) std::swap(a, b);
-    if (a.at == b.at) return;
-    const std::string ta = t.substr(a.at, a.n), tb = t.substr(b.at, b.n);
-    t.replace(b.at, b.n, ta);
-    t.replace(a.at, a.n, tb);
+    const Span a = pick(w), b = pick(w);
+    fuzz::swap_spans(t, a, b);
   }
 
   void keyword(std::string& t) {
-    std::vector<Word> w = words(t);
+    std::vector<Span> w = words(t);
     if (w.empty()) return bytes(t);
     const char* const keys[] = {"ROOT",   "JOINT",  "End",      "Site",      "{",         "}",      "OFFSET",
                                 "CHANNELS", "MOTION", "Frames:", "Frame",    "Time:",     "HIERARCHY", "Xrotation",
                                 "Zposition", "End Site", "{ }",  "} }",      "JOINT X {", "Qrotation"};
-    const Word x = w[below(w.size())];
+    const Span x = pick(w);
     if (chance(50)) t.replace(x.at, x.n, pick(keys));
     else t.insert(x.at, std::string(pick(keys)) + " ");
   }
@@ -191,27 +173,18 @@ class Mutator {
       if (t[i] == '\n' && i + 1 < t.size()) starts.push_back(i + 1);
     auto line_at = [&](std::size_t k) {
       const std::size_t e = k + 1 < starts.size() ? starts[k + 1] : t.size();
-      return std::make_pair(starts[k], e - starts[k]);
+      return Span{starts[k], e - starts[k]};
     };
     const std::size_t k = below(starts.size());
-    const auto [at, n] = line_at(k);
+    const Span line = line_at(k);
     switch (below(4)) {
-      case 0: t.erase(at, n); break;
-      case 1: t.insert(at, t.substr(at, n)); break;
-      case 2: {
-        const std::size_t k2 = below(starts.size());
-        if (k2 == k) break;
-        auto a = line_at(std::min(k, k2)), b = line_at(std::max(k, k2));
-        const std::string la = t.substr(a.first, a.second), lb = t.substr(b.first, b.second);
-        t.replace(b.first, b.second, la);
-        t.replace(a.first, a.second, lb);
-        break;
-      }
+      case 0: t.erase(line.at, line.n); break;
+      case 1: t.insert(line.at, t.substr(line.at, line.n)); break;
+      case 2: fuzz::swap_spans(t, line, line_at(below(starts.size()))); break;
       default: {
-        const std::size_t last = std::min(starts.size() - 1, k + 1 + below(12));
-        const auto [end_at, end_n] = line_at(last);
-        const std::string block = t.substr(at, end_at + end_n - at);
-        for (std::size_t r = 1 + below(3); r > 0; --r) t.insert(at, block);
+        const Span last = line_at(std::min(starts.size() - 1, k + 1 + below(12)));
+        const std::string block = t.substr(line.at, last.at + last.n - line.at);
+        for (std::size_t r = 1 + below(3); r > 0; --r) t.insert(line.at, block);
       }
     }
   }
@@ -222,102 +195,50 @@ class Mutator {
       if (std::isspace(static_cast<unsigned char>(t[i]))) spaces.push_back(i);
     if (spaces.empty()) return bytes(t);
     const char subs[] = {' ', '\n', '\r', '\t', '\0', '\v', '\f'};
-    const std::size_t at = spaces[below(spaces.size())];
+    const std::size_t at = pick(spaces);
     if (chance(70)) t[at] = pick(subs);
     else t.erase(at, 1);  // two words run together
   }
 
-  void bytes(std::string& b) {
-    if (b.empty()) return b.push_back('H');
-    switch (below(5)) {
-      case 0: b[below(b.size())] ^= static_cast<char>(1u << below(8)); break;
-      case 1: b[below(b.size())] = static_cast<char>(below(256)); break;
-      case 2: b.resize(below(b.size())); break;
-      case 3: {
-        const std::size_t at = below(b.size()), n = 1 + below(std::min<std::size_t>(64, b.size() - at));
-        b.erase(at, n);
-        break;
-      }
-      default: {
-        const std::size_t at = below(b.size()), n = 1 + below(std::min<std::size_t>(64, b.size() - at));
-        b.insert(below(b.size() + 1), b.substr(at, n));
-      }
-    }
-  }
+  void bytes(std::string& t) { fuzz::damage_bytes(*this, t, 'H'); }
 };
 
-struct Tally {
-  int accepted = 0, rejected = 0;
-  std::vector<std::string> samples;
-  std::set<std::string> seen;
-};
+// An accepted clip has a finite, positive frame rate, frames, and finite postures; returns what is wrong, or "".
+std::string check_clip(const Clip& clip) {
+  bool finite = true;
+  for (const auto& p : clip.frames)
+    for (float v : p) finite &= std::isfinite(v);
+  if (!(std::isfinite(clip.fps) && clip.fps > 0)) return "frame rate " + std::to_string(clip.fps);
+  if (clip.frames.empty()) return "no frames";
+  if (!finite) return "a posture is not finite";
+  return {};
+}
 
-void fuzz(const std::string& name, const std::string& seed, std::uint32_t rng_seed, int count) {
+void fuzz_bvh(const std::string& name, const std::string& seed, std::uint32_t rng_seed, int count) {
   const modeler::Skeleton& sk = modeler::default_skeleton();
-  const fs::path dir = fs::temp_directory_path() / "bb_bvh_fuzz";
-  fs::create_directories(dir);
-  const fs::path path = dir / (name + ".bvh");
-  auto write = [&](const std::string& text) { std::ofstream(path, std::ios::binary | std::ios::trunc) << text; };
-  write(seed);
-  {
-    auto clip = load_bvh(path.string(), sk);
-    ASSERT_TRUE(clip.ok()) << "the seed " << name << " does not load: " << clip.error().message();
-  }
+  const fs::path dir = fuzz::fresh_dir("bb_bvh_fuzz_" + name);
   Mutator m(rng_seed);
-  Tally tally;
-  for (int i = 0; i < count; ++i) {
+  auto mutant = [&] {
     std::string text = seed;
     for (int e = 1 + static_cast<int>(m.below(3)); e > 0; --e) m.mutate(text);
-    write(text);
-    auto clip = load_bvh(path.string(), sk);
-    std::string problem;
-    if (clip.ok()) {
-      ++tally.accepted;
-      bool finite = true;
-      for (const auto& p : clip->frames)
-        for (float v : p) finite &= std::isfinite(v);
-      if (!(std::isfinite(clip->fps) && clip->fps > 0)) problem = "frame rate " + std::to_string(clip->fps);
-      else if (clip->frames.empty()) problem = "no frames";
-      else if (!finite) problem = "a posture is not finite";
-    } else {
-      ++tally.rejected;
-      const std::string msg = clip.error().message();
-      if (msg.find(path.string()) == std::string::npos || clip.error().reason.empty())
-        problem = "the error does not name the file and a reason: " + msg;
-      else if (tally.samples.size() < 4 && tally.seen.insert(clip.error().reason.substr(0, 24)).second)
-        tally.samples.push_back(msg.substr(0, 200));
-    }
-    if (!problem.empty()) {
-      const fs::path keep = dir / ("failing_" + name + "_" + std::to_string(i) + ".bvh");
-      std::ofstream(keep, std::ios::binary) << text;
-      ADD_FAILURE() << name << " mutant " << i << " (kept as " << keep.string() << "): " << problem;
-      break;  // the first failing mutant of a seed is enough to look at
-    }
-  }
-  std::cout << "[fuzz] " << name << ".bvh: " << count << " mutants, " << tally.accepted << " accepted, "
-            << tally.rejected << " rejected\n";
-  for (const std::string& s : tally.samples) std::cout << "[fuzz]   e.g. " << s << "\n";
-  fs::remove(path);
+    return text;
+  };
+  auto load = [&](const std::string& path) { return load_bvh(path, sk); };
+  if (fuzz::run(dir / (name + ".bvh"), seed, count, mutant, load, check_clip)) fs::remove_all(dir);
 }
 
 TEST(BvhFuzz, HandMadeClips) {
-  fuzz("hand_lf", hand_made(false), 1301u, iterations(1500));
-  fuzz("hand_crlf", hand_made(true), 1302u, iterations(1500));
+  fuzz_bvh("hand_lf", hand_made(false), 1301u, fuzz::iterations(1500));
+  fuzz_bvh("hand_crlf", hand_made(true), 1302u, fuzz::iterations(1500));
 }
 
 TEST(BvhFuzz, SharedCmuClips) {
-  const fs::path dir = fs::path(BB_SHARED_DATA_DIR) / "bvh";
+  const fs::path dir = fuzz::shared_dir("bvh");
   if (!fs::exists(dir)) GTEST_SKIP() << "shared data absent: " << dir << " (only the hand-made clips were fuzzed)";
   std::uint32_t rng_seed = 1401;
-  for (const char* f : {"131_01.bvh", "01_01.bvh"}) {
-    const fs::path p = dir / f;
-    if (!fs::exists(p)) continue;
-    std::ifstream in(p, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
+  for (const fs::path& p : fuzz::present(dir, {"131_01.bvh", "01_01.bvh"}))
     // The hierarchy and a few frames: the parser and retargeting see everything the file has, fast.
-    fuzz(p.stem().string(), first_frames(ss.str(), 6), rng_seed++, iterations(1000));
-  }
+    fuzz_bvh(p.stem().string(), first_frames(fuzz::read_file(p), 6), rng_seed++, fuzz::iterations(1000));
 }
 
 }  // namespace

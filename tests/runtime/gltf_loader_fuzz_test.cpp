@@ -4,47 +4,28 @@
 // payload damage), every mutant is written to a file and loaded. Each load must return: the model, or an
 // error that names the file. A crash, hang or sanitizer report fails the run (build with BB_SANITIZE to
 // see the latter). BB_FUZZ_ITERATIONS=N sets the mutants per seed file (to look harder).
-#include <array>
-#include <cctype>
-#include <cmath>
 #include <cstdint>
-#include <cstdlib>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <iostream>
 #include <limits>
-#include <random>
 #include <set>
-#include <sstream>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
 #include "bb/runtime/model.h"
+#include "fuzz.h"
 
 namespace bb::runtime {
 namespace {
 
 namespace fs = std::filesystem;
+namespace fuzz = bb::test::fuzz;
 using json = nlohmann::json;
 using Bytes = std::string;  // file contents, binary or text
-
-int iterations(int fallback) {
-  if (const char* s = std::getenv("BB_FUZZ_ITERATIONS"); s && std::atoi(s) > 0) return std::atoi(s);
-  return fallback;
-}
-
-Bytes read_bytes(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-void write_bytes(const fs::path& p, const Bytes& b) { std::ofstream(p, std::ios::binary | std::ios::trunc) << b; }
 
 // ---- base64, for the buffers of a .gltf that carries them in data: URIs -------------------------------
 
@@ -83,12 +64,10 @@ Bytes b64_decode(const std::string& in) {
 
 // ---- mutations ----------------------------------------------------------------------------------------
 
-// Numbers that break parsers: signs, zero, 32-bit limits, huge, tiny, not finite (not all valid JSON).
-const char* const kNumberTexts[] = {"0",          "-1",         "1",           "2",    "3",          "1e30",
-                                    "-1e30",      "nan",        "NaN",         "inf",  "4294967295", "4294967296",
-                                    "2147483647", "2147483648", "-2147483648", "65535", "65536",     "1e-45",
-                                    "0.5",        "1e308",      "1e400",       "-0",   "18446744073709551615",
-                                    "99999999999999999999999"};
+// Numbers that trouble a glTF reader besides the common ones: small indices, 16-bit limits, a fraction.
+const std::vector<const char*> kNumberTexts = fuzz::number_texts({"3", "65535", "65536", "0.5"});
+// What byte damage writes half the time in place of a byte: JSON's punctuation, a NUL, 0xff.
+constexpr std::string_view kSpecialBytes("\0\xff{}[]\",:-9 \n\\.e", 16);
 const double kNumbers[] = {0,          -1,         1,           2,     3,     1e30,   -1e30, 4294967295.0, 4294967296.0,
                            2147483647, 2147483648, -2147483648, 65535, 65536, 1e-30, 0.5,   1.7e308,      -0.0,
                            9007199254740993.0, 16777217, 255, 256, 5121, 5126, 35};
@@ -101,103 +80,30 @@ const std::set<std::string> kHotKeys = {
     "mode",    "uri",        "path",       "interpolation", "values",  "targets",  "MSFT_screencoverage",
     "matrix",  "rotation",   "translation", "scale",     "min",        "max",      "normalized",    "sparse"};
 
-class Mutator {
-  struct Site {
-    json::json_pointer ptr;
-    std::string key;
-  };
-
+class Mutator : public fuzz::Random {
  public:
-  explicit Mutator(std::uint32_t seed) : rng_(seed) {}
+  using Random::Random;
 
-  std::size_t below(std::size_t n) { return n == 0 ? 0 : std::uniform_int_distribution<std::size_t>(0, n - 1)(rng_); }
-  bool chance(int percent) { return static_cast<int>(below(100)) < percent; }
-  template <class T, std::size_t N>
-  const T& pick(const T (&a)[N]) { return a[below(N)]; }
-
-  // Byte-level damage anywhere in `b`.
+  // Byte-level damage anywhere in `b` (the shared kinds, or several bit flips at once).
   void bytes(Bytes& b) {
-    if (b.empty()) return b.push_back('{');
-    switch (below(6)) {
-      case 0: b[below(b.size())] ^= static_cast<char>(1u << below(8)); break;
-      case 1: {
-        const char special[] = {'\0', '\xff', '{', '}', '[', ']', '"', ',', ':', '-', '9', ' ', '\n', '\\', '.', 'e'};
-        b[below(b.size())] = chance(50) ? pick(special) : static_cast<char>(below(256));
-        break;
-      }
-      case 2: b.resize(below(b.size())); break;  // truncated
-      case 3: {                                  // a range deleted
-        const std::size_t at = below(b.size()), n = 1 + below(std::min<std::size_t>(64, b.size() - at));
-        b.erase(at, n);
-        break;
-      }
-      case 4: {  // a range duplicated somewhere
-        const std::size_t at = below(b.size()), n = 1 + below(std::min<std::size_t>(64, b.size() - at));
-        b.insert(below(b.size() + 1), b.substr(at, n));
-        break;
-      }
-      default:  // several bit flips
-        for (int k = 0; k < 8; ++k) b[below(b.size())] ^= static_cast<char>(1u << below(8));
+    if (!b.empty() && below(6) == 0) {
+      for (int k = 0; k < 8; ++k) fuzz::flip_bit(*this, b);
+    } else {
+      fuzz::damage_bytes(*this, b, '{', kSpecialBytes);
     }
   }
 
   // Text-level damage of a JSON text that keeps the tokens apart: a number replaced, two tokens swapped.
   void json_text(std::string& t) {
-    struct Tok { std::size_t at, n; bool number; };
-    std::vector<Tok> toks;
-    for (std::size_t i = 0; i < t.size();) {
-      const char ch = t[i];
-      if (ch == '"') {
-        std::size_t e = i + 1;
-        while (e < t.size() && t[e] != '"') e += t[e] == '\\' ? 2 : 1;
-        e = std::min(e + 1, t.size());
-        toks.push_back({i, e - i, false});
-        i = e;
-      } else if (ch == '-' || (ch >= '0' && ch <= '9')) {
-        std::size_t e = i + 1;
-        while (e < t.size() && std::strchr("0123456789.eE+-", t[e]) && t[e]) ++e;
-        toks.push_back({i, e - i, true});
-        i = e;
-      } else if (std::strchr("{}[],:", ch) && ch) {
-        toks.push_back({i, 1, false});
-        ++i;
-      } else if (std::isalpha(static_cast<unsigned char>(ch))) {
-        std::size_t e = i;
-        while (e < t.size() && std::isalpha(static_cast<unsigned char>(t[e]))) ++e;
-        toks.push_back({i, e - i, false});
-        i = e;
-      } else {
-        ++i;
-      }
-    }
-    if (toks.size() < 2) return bytes(t);
-    if (chance(60)) {  // a number replaced by a troublesome one
-      std::vector<Tok> nums;
-      for (const Tok& k : toks)
-        if (k.number) nums.push_back(k);
-      if (!nums.empty()) {
-        const Tok& k = nums[below(nums.size())];
-        t.replace(k.at, k.n, pick(kNumberTexts));
-        return;
-      }
-    }
-    // Two tokens swapped (the later one first, so the earlier offsets stay valid).
-    Tok a = toks[below(toks.size())], b = toks[below(toks.size())];
-    if (a.at > b.at) std::swap(a, b);
-    if (a.at == b.at) return;
-    const std::string ta = t.substr(a.at, a.n), tb = t.substr(b.at, b.n);
-    t.replace(b.at, b.n, ta);
-    t.replace(a.at, a.n, tb);
+    if (!fuzz::damage_json_tokens(*this, t, kNumberTexts)) bytes(t);
   }
 
   // One structure-aware edit of a parsed JSON document.
   void json_edit(json& doc) {
-    std::vector<Site> all, hot;
-    collect(doc, json::json_pointer(), "", all, hot);
-    if (all.empty()) return;
-    const Site& s = !hot.empty() && chance(70) ? hot[below(hot.size())] : all[below(all.size())];
-    json& v = doc[s.ptr];
-    const bool has_parent = !s.ptr.empty();
+    const fuzz::Sites sites(doc, kHotKeys);
+    if (sites.all.empty()) return;
+    const json::json_pointer& ptr = sites.pick(*this);  // never the root
+    json& v = doc[ptr];
     switch (below(10)) {
       case 0:
       case 1:
@@ -216,26 +122,20 @@ class Mutator {
         break;
       }
       case 5:  // removed
-        if (has_parent) {
-          json& parent = doc[s.ptr.parent_pointer()];
-          if (parent.is_object()) parent.erase(s.ptr.back());
-          else if (parent.is_array() && !parent.empty()) parent.erase(parent.begin() + std::stoi(s.ptr.back()));
-        }
+        fuzz::erase_at(doc, ptr);
         break;
       case 6:  // an array grows by a copy of one of its elements (more indices, more keys)
         if (v.is_array() && !v.empty()) {
           const json copy = v[below(v.size())];
           v.insert(v.begin() + below(v.size() + 1), copy);
-        } else if (has_parent && doc[s.ptr.parent_pointer()].is_array()) {
+        } else if (doc[ptr.parent_pointer()].is_array()) {
           const json copy = v;
-          doc[s.ptr.parent_pointer()].push_back(copy);
+          doc[ptr.parent_pointer()].push_back(copy);
         }
         break;
-      case 7: {  // swapped with another place's value
-        json& w = doc[all[below(all.size())].ptr];
-        if (&w != &v && !contains(v, w) && !contains(w, v)) std::swap(v, w);
+      case 7:  // swapped with another place's value
+        fuzz::swap_with_another(*this, doc, v, sites);
         break;
-      }
       case 8:  // an array shortened or extended
         if (v.is_array()) {
           if (!v.empty() && chance(50)) v.erase(v.begin() + below(v.size()));
@@ -249,39 +149,11 @@ class Mutator {
     }
   }
 
- private:
-  std::mt19937 rng_;
-
-  static bool contains(const json& outer, const json& inner) {
-    if (&outer == &inner) return true;
-    if (outer.is_structured())
-      for (const json& e : outer)
-        if (contains(e, inner)) return true;
-    return false;
-  }
-  static void collect(const json& j, const json::json_pointer& p, const std::string& key, std::vector<Site>& all,
-                      std::vector<Site>& hot) {
-    if (!p.empty()) {
-      all.push_back({p, key});
-      if (kHotKeys.count(key)) hot.push_back({p, key});
-    }
-    if (j.is_object()) {
-      for (auto it = j.begin(); it != j.end(); ++it) collect(it.value(), p / it.key(), it.key(), all, hot);
-    } else if (j.is_array()) {
-      for (std::size_t i = 0; i < j.size(); ++i) collect(j[i], p / i, key, all, hot);  // elements inherit the key
-    }
-  }
 };
 
-// A value nested `depth` arrays or objects deep put in the document's extras (kept by tinygltf), or where it
-// breaks the document.
+// A deeply nested value put in the document's extras (kept by tinygltf), or where it breaks the document.
 void deep_nesting(Mutator& m, std::string& text) {
-  const std::size_t depth = m.chance(50) ? 1000 : 100000;
-  const bool arrays = m.chance(50);
-  std::string deep;
-  for (std::size_t d = 0; d < depth; ++d) deep += arrays ? "[" : "{\"a\":";
-  deep += "0";
-  for (std::size_t d = 0; d < depth; ++d) deep += arrays ? "]" : "}";
+  const std::string deep = fuzz::deep_value(m);
   const std::size_t brace = text.find('{');
   if (brace == std::string::npos) return;
   if (m.chance(70)) text.insert(brace + 1, "\"extras\": " + deep + ",");
@@ -397,7 +269,7 @@ void damage_payload(Mutator& m, Bytes& bin, const json* doc = nullptr, int buffe
         std::memcpy(bin.data() + at + 2 * m.below(2), &s, 2);
         break;
       }
-      default: bin[m.below(bin.size())] ^= static_cast<char>(1u << m.below(8));
+      default: fuzz::flip_bit(m, bin);
     }
   }
 }
@@ -532,66 +404,20 @@ Seed hand_made(bool glb) {
 
 // ---- the run ------------------------------------------------------------------------------------------
 
-struct Tally {
-  int accepted = 0, rejected = 0;
-  std::vector<std::string> samples;  // a few distinct error messages
-  std::set<std::string> seen_reasons;
-};
-
-// Loads `path` and checks the contract; returns what is wrong, or nothing.
-std::string load_and_check(const fs::path& path, Tally& tally) {
-  auto r = load_model(path.string());
-  if (r.ok()) {
-    ++tally.accepted;
-    return {};
-  }
-  ++tally.rejected;
-  const std::string msg = r.error().message();
-  if (msg.find(path.string()) == std::string::npos || r.error().reason.empty())
-    return "the error does not name the file and a reason: " + msg;
-  const std::string key = r.error().where + "|" + r.error().reason.substr(0, 40);
-  if (tally.samples.size() < 4 && tally.seen_reasons.insert(key).second) tally.samples.push_back(msg.substr(0, 240));
-  return {};
-}
-
-// Keeps the first failing mutant of a seed for a look (in the seed's folder, which is then left in place).
-void fail(const fs::path& keep, const Bytes& mutant, const std::string& what, const std::string& problem) {
-  write_bytes(keep, mutant);
-  ADD_FAILURE() << what << " (kept as " << keep.string() << "): " << problem;
-}
-
-void report(const std::string& name, int mutants, const Tally& t) {
-  std::cout << "[fuzz] " << name << ": " << mutants << " mutants, " << t.accepted << " accepted, " << t.rejected
-            << " rejected\n";
-  for (const std::string& s : t.samples) std::cout << "[fuzz]   e.g. " << s << "\n";
-}
-
-fs::path fuzz_dir(const std::string& name) {
-  fs::path d = fs::temp_directory_path() / ("bb_gltf_fuzz_" + name);
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
+// Each mutant must load, or fail with an error that names the file (fuzz::run checks).
+Result<Model> load(const std::string& path) { return load_model(path); }
 
 // Mutants of a .gltf document. `bin`, when given, is the external buffer 0 (written as mutant.bin beside the
 // mutant whenever a mutant damages it); buffers with data: URIs are decoded, damaged and encoded again.
 void fuzz_gltf(const std::string& name, const json& seed, const Bytes* bin, std::uint32_t rng_seed, int count) {
-  const fs::path dir = fuzz_dir(name);
+  const fs::path dir = fuzz::fresh_dir("bb_gltf_fuzz_" + name);
   json base = seed;
   if (bin) {
-    write_bytes(dir / "seed.bin", *bin);
+    fuzz::write_file(dir / "seed.bin", *bin);
     base["buffers"][0]["uri"] = "seed.bin";
   }
-  const fs::path path = dir / (name + ".gltf");
-  write_bytes(path, base.dump(1));
-  {
-    auto r = load_model(path.string());
-    ASSERT_TRUE(r.ok()) << "the seed " << name << " does not load: " << r.error().message();
-  }
   Mutator m(rng_seed);
-  Tally tally;
-  bool failed = false;
-  for (int i = 0; i < count; ++i) {
+  auto mutant = [&] {
     json j = base;
     std::string text;
     const std::size_t kind = m.below(10);
@@ -605,7 +431,7 @@ void fuzz_gltf(const std::string& name, const json& seed, const Bytes* bin, std:
         Bytes b = *bin;
         damage_payload(m, b, &j, 0);
         if (m.chance(10)) b.resize(m.below(b.size()));
-        write_bytes(dir / "mutant.bin", b);
+        fuzz::write_file(dir / "mutant.bin", b);
         j["buffers"][0]["uri"] = "mutant.bin";
         done = true;
       } else if (j.contains("buffers") && j["buffers"].is_array() && !j["buffers"].empty()) {
@@ -635,28 +461,17 @@ void fuzz_gltf(const std::string& name, const json& seed, const Bytes* bin, std:
       text = j.dump(1);
       deep_nesting(m, text);
     }
-    write_bytes(path, text);
-    if (const std::string problem = load_and_check(path, tally); !problem.empty()) {
-      fail(dir / ("failing_" + std::to_string(i) + ".gltf"), text, name + " mutant " + std::to_string(i), problem);
-      failed = true;
-      break;
-    }
-  }
-  report(name + ".gltf", count, tally);
-  if (!failed) fs::remove_all(dir);
+    return text;
+  };
+  if (fuzz::run(dir / (name + ".gltf"), base.dump(1), count, mutant, load)) fs::remove_all(dir);
 }
 
 void fuzz_glb(const std::string& name, const Bytes& seed, std::uint32_t rng_seed, int count) {
-  const fs::path dir = fuzz_dir(name);
-  const fs::path path = dir / (name + ".glb");
-  write_bytes(path, seed);
-  ASSERT_TRUE(load_model(path.string()).ok()) << "the seed " << name << " does not load";
+  const fs::path dir = fuzz::fresh_dir("bb_gltf_fuzz_" + name);
   const Glb parts = split_glb(seed);
   const json doc = json::parse(parts.json_text);
   Mutator m(rng_seed);
-  Tally tally;
-  bool failed = false;
-  for (int i = 0; i < count; ++i) {
+  auto mutant = [&] {
     Bytes out;
     const std::size_t kind = m.below(10);
     if (kind < 4) {  // structure-aware JSON edits, a well-formed container
@@ -688,38 +503,26 @@ void fuzz_glb(const std::string& name, const Bytes& seed, std::uint32_t rng_seed
       out = seed;
       m.bytes(out);
     }
-    write_bytes(path, out);
-    if (const std::string problem = load_and_check(path, tally); !problem.empty()) {
-      fail(dir / ("failing_" + std::to_string(i) + ".glb"), out, name + " mutant " + std::to_string(i), problem);
-      failed = true;
-      break;
-    }
-  }
-  report(name + ".glb", count, tally);
-  if (!failed) fs::remove_all(dir);
+    return out;
+  };
+  if (fuzz::run(dir / (name + ".glb"), seed, count, mutant, load)) fs::remove_all(dir);
 }
 
 TEST(GltfLoaderFuzz, HandMadeGltfAndGlb) {
   const Seed text = hand_made(false);
-  fuzz_gltf("hand", text.j, &text.bin, 20240611u, iterations(1500));
+  fuzz_gltf("hand", text.j, &text.bin, 20240611u, fuzz::iterations(1500));
   const Seed bin = hand_made(true);
-  fuzz_glb("hand", make_glb(bin.j.dump(), bin.bin), 20240612u, iterations(1500));
+  fuzz_glb("hand", make_glb(bin.j.dump(), bin.bin), 20240612u, fuzz::iterations(1500));
 }
 
 TEST(GltfLoaderFuzz, SharedModels) {
-  const fs::path dir = fs::path(BB_SHARED_DATA_DIR) / "gltf";
+  const fs::path dir = fuzz::shared_dir("gltf");
   if (!fs::exists(dir)) GTEST_SKIP() << "shared data absent: " << dir << " (only the hand-made seeds were fuzzed)";
   std::uint32_t rng_seed = 7001;
-  for (const char* f : {"SimpleSkin.gltf", "RiggedSimple.gltf"}) {
-    const fs::path p = dir / f;
-    if (!fs::exists(p)) continue;
-    fuzz_gltf(fs::path(f).stem().string(), json::parse(read_bytes(p)), nullptr, rng_seed++, iterations(400));
-  }
-  for (const char* f : {"CesiumMan.glb", "Fox.glb"}) {
-    const fs::path p = dir / f;
-    if (!fs::exists(p)) continue;
-    fuzz_glb(fs::path(f).stem().string(), read_bytes(p), rng_seed++, iterations(150));
-  }
+  for (const fs::path& p : fuzz::present(dir, {"SimpleSkin.gltf", "RiggedSimple.gltf"}))
+    fuzz_gltf(p.stem().string(), json::parse(fuzz::read_file(p)), nullptr, rng_seed++, fuzz::iterations(400));
+  for (const fs::path& p : fuzz::present(dir, {"CesiumMan.glb", "Fox.glb"}))
+    fuzz_glb(p.stem().string(), fuzz::read_file(p), rng_seed++, fuzz::iterations(150));
 }
 
 }  // namespace
