@@ -549,7 +549,6 @@ TEST(GltfLoader, UnreadRequiredExtensionsAndBadSparseAccessorsAreErrors) {
   }
 }
 
-
 // Found by gltf_loader_fuzz_test.cpp and in the code it pointed at: inputs that crashed, allocated 2^63 bytes
 // or read past a buffer inside tinygltf 2.7 or the loader, or converted an out-of-range number to int (undefined
 // behaviour). Each is now an error naming the file and the place (or, for the texture coordinate set, a clamp).
