@@ -863,23 +863,29 @@ struct Renderer::Impl {
     if (blend) blend_state(false);
   }
 
+  // Calls draw(k) for each primitive k of `ml` that `surfaces` takes and `keep(k)` allows, the
+  // opaque ones first, with its material in `sp` (blended where it blends).
+  template <class Keep, class Draw>
+  void each_primitive(const ShadeProgram& sp, const MeshLod& ml, Surfaces surfaces, Keep&& keep, Draw&& draw) {
+    for (bool blend : {false, true}) {
+      if (blend ? surfaces == Surfaces::kOpaque || !any_blended : surfaces == Surfaces::kBlended) continue;
+      for (std::size_t k = 0; k < ml.primitives.size(); ++k)
+        if (blended(ml.primitives[k]) == blend && keep(k)) with_material(sp, ml.primitives[k].material, [&] { draw(k); });
+    }
+  }
+
   // The triangles of body part `part` only (the part index buffer's ranges).
   void draw_part(int lod, int part, GLsizei count, GLuint base_instance) {
     const MeshLod& ml = model->lods[lod];
     const PartIndices& pi = model->part_indices(lod);
-    for (bool blend : {false, true}) {
-      if (blend && !any_blended) break;
-      for (std::size_t k = 0; k < ml.primitives.size(); ++k) {
-        const PartIndices::Range& r = pi.ranges[k * parts + part];
-        if (r.count == 0 || blended(ml.primitives[k]) != blend) continue;
-        with_material(shade_snapshot, ml.primitives[k].material, [&] {
-          glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(r.count), GL_UNSIGNED_INT,
-                                              reinterpret_cast<const void*>(static_cast<std::uintptr_t>(r.first) * 4), count,
-                                              base_instance);
-        });
-        drew_indices(static_cast<std::size_t>(r.count) * static_cast<std::size_t>(count));
-      }
-    }
+    auto range = [&](std::size_t k) -> const PartIndices::Range& { return pi.ranges[k * parts + part]; };
+    each_primitive(shade_snapshot, ml, Surfaces::kBoth, [&](std::size_t k) { return range(k).count > 0; }, [&](std::size_t k) {
+      const PartIndices::Range& r = range(k);
+      glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(r.count), GL_UNSIGNED_INT,
+                                          reinterpret_cast<const void*>(static_cast<std::uintptr_t>(r.first) * 4), count,
+                                          base_instance);
+      drew_indices(static_cast<std::size_t>(r.count) * static_cast<std::size_t>(count));
+    });
   }
 
   void take_snapshots(const FramePlan& plan, bool time_stages);
@@ -898,18 +904,13 @@ struct Renderer::Impl {
         n = std::min<GLsizei>(n, static_cast<GLsizei>(std::max<std::size_t>(1, (left + per - 1) / per)));
       }
       std::size_t drawn = 0;  // indices of one instance
-      for (bool blend : {false, true}) {
-        if (blend ? surfaces == Surfaces::kOpaque || !any_blended : surfaces == Surfaces::kBlended) continue;
-        for (const Primitive& p : ml.primitives) {
-          if (blended(p) != blend) continue;
-          with_material(sp, p.material, [&] {
-            glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(p.index_count), GL_UNSIGNED_INT,
-                                                reinterpret_cast<const void*>(static_cast<std::uintptr_t>(p.first_index) * 4),
-                                                n, base_instance + static_cast<GLuint>(done));
-          });
-          drawn += p.index_count;
-        }
-      }
+      each_primitive(sp, ml, surfaces, [](std::size_t) { return true; }, [&](std::size_t k) {
+        const Primitive& p = ml.primitives[k];
+        glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(p.index_count), GL_UNSIGNED_INT,
+                                            reinterpret_cast<const void*>(static_cast<std::uintptr_t>(p.first_index) * 4), n,
+                                            base_instance + static_cast<GLuint>(done));
+        drawn += p.index_count;
+      });
       drew_indices(drawn * static_cast<std::size_t>(n));
       done += n;
     }
@@ -1371,7 +1372,7 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
     d.instance_lod.clear();
     for (std::size_t lod = 0; lod < plan.geometry.size() && lod < d.lods.size(); ++lod) {
       d.instance_scratch.insert(d.instance_scratch.end(), plan.geometry[lod].begin(), plan.geometry[lod].end());
-      d.instance_lod.insert(d.instance_lod.end(), plan.geometry[lod].size(), static_cast<int>(lod));
+      if (d.any_blended) d.instance_lod.insert(d.instance_lod.end(), plan.geometry[lod].size(), static_cast<int>(lod));
     }
     const std::size_t n_instances = d.instance_scratch.size();
     if (n_instances > 0 && d.any_blended) {

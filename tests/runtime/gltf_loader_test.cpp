@@ -59,6 +59,15 @@ struct GltfFile {
     j["scenes"] = json::array({{{"nodes", json::array({0})}}});
     j["scene"] = 0;
   }
+  // One triangle drawn `n` times, primitive k with material k (the materials are the caller's).
+  void triangle_per_material(int n) {
+    mesh({{"POSITION", accessor(view(std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0}), kFloat, 3, "VEC3")}}, -1, 0);
+    json prim = j["meshes"][0]["primitives"][0];
+    for (int k = 1; k < n; ++k) {
+      prim["material"] = k;
+      j["meshes"][0]["primitives"].push_back(prim);
+    }
+  }
   std::string write(const std::string& name) {
     fs::path dir = fs::temp_directory_path() / "bb_gltf_loader_test";
     fs::create_directories(dir);
@@ -220,13 +229,7 @@ TEST(GltfLoader, IndexedMeshWithoutNormalsIsFlatShaded) {
 TEST(GltfLoader, SamplersAreRead) {
   auto file = [](const json& samplers, const json& textures) {
     GltfFile f;
-    int pos = f.accessor(f.view(std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0}), kFloat, 3, "VEC3");
-    f.mesh({{"POSITION", pos}}, -1, 0);
-    json prim = f.j["meshes"][0]["primitives"][0];
-    for (int mi = 1; mi < 4; ++mi) {
-      prim["material"] = mi;
-      f.j["meshes"][0]["primitives"].push_back(prim);
-    }
+    f.triangle_per_material(4);
     f.j["materials"] = json::array();
     for (int mi = 0; mi < 3; ++mi)
       f.j["materials"].push_back({{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", mi}}}}}});
@@ -359,13 +362,7 @@ TEST(GltfLoader, WebpTexturesAreDecoded) {
 // BLEND blends and does not test.
 TEST(GltfLoader, AlphaModesAreKept) {
   GltfFile f;
-  int pos = f.accessor(f.view(std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0}), kFloat, 3, "VEC3");
-  f.mesh({{"POSITION", pos}}, -1, 0);
-  json prim = f.j["meshes"][0]["primitives"][0];
-  for (int k = 1; k < 4; ++k) {
-    prim["material"] = k;
-    f.j["meshes"][0]["primitives"].push_back(prim);
-  }
+  f.triangle_per_material(4);
   f.j["materials"] = json::array({json::object(), {{"alphaMode", "MASK"}}, {{"alphaMode", "MASK"}, {"alphaCutoff", 0.25}},
                                   {{"alphaMode", "BLEND"}, {"alphaCutoff", 0.25}}});
   auto m = load_model(f.write("alpha_modes"));

@@ -421,10 +421,13 @@ struct SquareScene {
     EXPECT_TRUE(t.ok());
     if (t.ok()) target = std::move(*t);
   }
-  static ImpostorConfig fresh() {
+  // Every snapshot taken anew each frame (relit ones with `relight`).
+  static ImpostorConfig fresh() { return fresh(false); }
+  static ImpostorConfig fresh(bool relight) {
     ImpostorConfig cfg;
     cfg.cache.posture_threshold = 0.0f;
     cfg.cache.view_threshold_deg = 0.0f;
+    cfg.relight = relight;
     return cfg;
   }
   bool ok() const { return renderer && target; }
@@ -1014,9 +1017,7 @@ TEST(CrowdRender, UnlitMaterialsKeepTheirColour) {
   for (bool unlit : {false, true}) {
     m.materials[0].unlit = unlit;
     for (bool relight : {false, true}) {
-      ImpostorConfig cfg = SquareScene::fresh();
-      cfg.relight = relight;
-      SquareScene scene(m, cfg);
+      SquareScene scene(m, SquareScene::fresh(relight));
       ASSERT_TRUE(scene.ok());
       for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) {
         const auto [opaque, exact] = count(scene.frame(mode));
@@ -1065,9 +1066,7 @@ TEST(CrowdRender, BlendedSurfacesLieOverTheOpaqueOnes) {
     return true;
   };
   for (bool relight : {false, true}) {
-    ImpostorConfig cfg = SquareScene::fresh();
-    cfg.relight = relight;
-    SquareScene scene(m, cfg);
+    SquareScene scene(m, SquareScene::fresh(relight));
     ASSERT_TRUE(scene.ok());
     for (RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) {
       const auto px = scene.frame(mode);
