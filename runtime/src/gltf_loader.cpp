@@ -21,6 +21,7 @@
 #include <webp/decode.h>
 
 #include "bb/runtime/model.h"
+#include "gltf_document.h"
 
 namespace bb::runtime {
 
@@ -30,33 +31,83 @@ namespace {
 
 std::string idx(const char* array, int i) { return std::string("$.") + array + "[" + std::to_string(i) + "]"; }
 
-// tinygltf's image callback: WebP (EXT_texture_webp) through libwebp, anything else through tinygltf's
-// own stb_image loader. Without it a file with a WebP image failed to load at all, even one that
-// offers a PNG beside it. `user_data` is the model being loaded: tinygltf 2.7 hands over an image's buffer
-// view without checking that it lies within its buffer, so that is checked here before a byte is read.
+// The width and height a PNG or JPEG header gives, read before stb_image allocates its pixels from them; nothing
+// for other formats, or a header too short to tell.
+std::optional<std::pair<std::uint32_t, std::uint32_t>> png_or_jpeg_size(const unsigned char* b, int size) {
+  const auto n = static_cast<std::size_t>(std::max(size, 0));
+  auto be = [&](std::size_t at, int bytes) {
+    std::uint32_t v = 0;
+    for (int k = 0; k < bytes; ++k) v = v << 8 | b[at + k];
+    return v;
+  };
+  if (n >= 24 && std::memcmp(b, "\x89PNG\r\n\x1a\n", 8) == 0 && std::memcmp(b + 12, "IHDR", 4) == 0)
+    return std::make_pair(be(16, 4), be(20, 4));
+  if (n < 4 || b[0] != 0xff || b[1] != 0xd8) return std::nullopt;
+  for (std::size_t i = 2; i + 9 <= n;) {  // JPEG segments up to the frame header (SOF0 to SOF15)
+    if (b[i] != 0xff) return std::nullopt;
+    const unsigned m = b[i + 1];
+    if (m == 0xff) { ++i; continue; }  // fill byte
+    if (m == 0xd8 || m == 0x01 || (m >= 0xd0 && m <= 0xd7)) { i += 2; continue; }  // no length
+    if (m >= 0xc0 && m <= 0xcf && m != 0xc4 && m != 0xc8 && m != 0xcc) return std::make_pair(be(i + 7, 2), be(i + 5, 2));
+    i += 2 + be(i + 2, 2);
+  }
+  return std::nullopt;
+}
+
+// The largest texture side this loader takes: 16384 texels (a 1 GiB RGBA image at most).
+constexpr std::uint32_t kMaxImageSide = 16384;
+
+// What tinygltf's image callback needs besides the image: the model being read, and a place to put the first
+// error with its place (tinygltf would keep only the text).
+struct ImageContext {
+  const tg::Model* model;
+  std::string file;
+  std::optional<Error> error;
+};
+
+// tinygltf's image callback: WebP (EXT_texture_webp) through libwebp, PNG and JPEG through tinygltf's own
+// stb_image loader. Without it a file with a WebP image failed to load at all, even one that offers a PNG
+// beside it. tinygltf 2.7 hands over an image's buffer view without checking that it lies within its buffer,
+// and stb_image allocates what a PNG or JPEG header asks (up to 2 GB) before it reads the pixels, so both
+// are checked here first.
 bool load_image(tg::Image* image, const int image_idx, std::string* err, std::string* warn, int req_width, int req_height,
                 const unsigned char* bytes, int size, void* user_data) {
-  if (const auto* m = static_cast<const tg::Model*>(user_data); m && image->bufferView >= 0) {
+  auto* ctx = static_cast<ImageContext*>(user_data);
+  auto refuse = [&](const std::string& where, const std::string& reason) {
+    if (!ctx->error) ctx->error = Error{ctx->file, where, reason};
+    if (err) *err += where + ": " + reason + "\n";
+    return false;
+  };
+  if (image->bufferView >= 0) {
     // tinygltf checked the view's and its buffer's indices.
-    const tg::BufferView& bv = m->bufferViews[image->bufferView];
-    const std::size_t have = m->buffers[bv.buffer].data.size();
-    if (bv.byteOffset > have || bv.byteLength > have - bv.byteOffset || bv.byteLength > 0x7fffffffu) {
-      if (err) *err += idx("bufferViews", image->bufferView) + ": byte range [" + std::to_string(bv.byteOffset) + ", " +
-                       std::to_string(bv.byteOffset + bv.byteLength) + ") of image " + std::to_string(image_idx) +
-                       " lies outside its buffer of " + std::to_string(have) + " bytes\n";
-      return false;
-    }
+    const tg::BufferView& bv = ctx->model->bufferViews[image->bufferView];
+    const std::size_t have = ctx->model->buffers[bv.buffer].data.size();
+    if (bv.byteOffset > have || bv.byteLength > have - bv.byteOffset || bv.byteLength > 0x7fffffffu)
+      return refuse(idx("bufferViews", image->bufferView),
+                    "byte range [" + std::to_string(bv.byteOffset) + ", " + std::to_string(bv.byteOffset + bv.byteLength) +
+                        ") of image " + std::to_string(image_idx) + " lies outside its buffer of " + std::to_string(have) + " bytes");
   }
+  auto too_large = [&](std::uint32_t w, std::uint32_t h) {
+    return refuse(idx("images", image_idx), "is " + std::to_string(w) + " x " + std::to_string(h) +
+                                                " pixels; this loader takes textures up to " + std::to_string(kMaxImageSide) + " on a side");
+  };
   const bool webp = size >= 12 && std::memcmp(bytes, "RIFF", 4) == 0 && std::memcmp(bytes + 8, "WEBP", 4) == 0;
-  if (!webp) return tg::LoadImageData(image, image_idx, err, warn, req_width, req_height, bytes, size, nullptr);
+  if (!webp) {
+    if (auto wh = png_or_jpeg_size(bytes, size); wh && std::max(wh->first, wh->second) > kMaxImageSide)
+      return too_large(wh->first, wh->second);
+    if (tg::LoadImageData(image, image_idx, err, warn, req_width, req_height, bytes, size, nullptr)) return true;
+    return refuse(idx("images", image_idx), "the image does not decode (corrupt, or not a PNG or JPEG stb_image reads)");
+  }
   int w = 0, h = 0;
+  if (WebPGetInfo(bytes, static_cast<std::size_t>(size), &w, &h) && w > 0 && h > 0 &&
+      static_cast<std::uint32_t>(std::max(w, h)) > kMaxImageSide)
+    return too_large(static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(h));
   std::uint8_t* rgba = size > 0 ? WebPDecodeRGBA(bytes, static_cast<std::size_t>(size), &w, &h) : nullptr;
   if (!rgba || w <= 0 || h <= 0) {
     if (rgba) WebPFree(rgba);
-    if (err) *err += idx("images", image_idx) + ": the WebP image does not decode (corrupt, or not a WebP libwebp " +
-                     std::to_string(WebPGetDecoderVersion() >> 16) + "." + std::to_string((WebPGetDecoderVersion() >> 8) & 0xff) +
-                     " reads)\n";
-    return false;
+    return refuse(idx("images", image_idx), "the WebP image does not decode (corrupt, or not a WebP libwebp " +
+                                                std::to_string(WebPGetDecoderVersion() >> 16) + "." +
+                                                std::to_string((WebPGetDecoderVersion() >> 8) & 0xff) + " reads)");
   }
   image->width = w;
   image->height = h;
@@ -955,49 +1006,6 @@ std::optional<std::vector<unsigned char>> glb_without_fallback_lengths(const std
   return out;
 }
 
-// tinygltf 2.7 checks that the BIN chunk's payload fits in the file's declared length but forgets the chunk's
-// 8-byte header, so a chunk length up to 8 bytes too large (with a buffer as long) reads past the end of the
-// file's bytes. The rest of the container it checks itself.
-Status check_glb_chunks(const std::vector<unsigned char>& glb, const std::string& path) {
-  if (glb.size() < 20 || std::memcmp(glb.data(), "glTF", 4) != 0) return Ok{};  // tinygltf says what is wrong
-  auto u32 = [&](std::uint64_t at) {
-    std::uint32_t v;
-    std::memcpy(&v, glb.data() + at, 4);
-    return std::uint64_t{v};
-  };
-  const std::uint64_t length = std::min<std::uint64_t>(u32(8), glb.size());
-  const std::uint64_t bin_at = 20 + u32(12);  // the BIN chunk's header
-  if (bin_at + 8 > length) return Ok{};        // no BIN chunk, or no room for one: tinygltf's to judge
-  if (bin_at + 8 + u32(bin_at) > length)
-    return Error{path, "byte " + std::to_string(bin_at),
-                 "the BIN chunk's length " + std::to_string(u32(bin_at)) + " runs past the end of the file (" +
-                     std::to_string(length) + " bytes)"};
-  return Ok{};
-}
-
-// tinygltf walks the parsed JSON recursively (extras and extensions may hold any value), so a document
-// nested thousands deep overflows the stack inside it. Returns the offset in `text` of the bracket that nests
-// deeper than kMaxJsonDepth, if any. (Exact for valid JSON; tinygltf rejects invalid JSON before walking it.)
-constexpr int kMaxJsonDepth = 256;
-std::optional<std::size_t> too_deep(const unsigned char* text, std::size_t n) {
-  int depth = 0;
-  bool in_string = false;
-  for (std::size_t i = 0; i < n; ++i) {
-    const unsigned char ch = text[i];
-    if (in_string) {
-      if (ch == '\\') ++i;
-      else if (ch == '"') in_string = false;
-    } else if (ch == '"') {
-      in_string = true;
-    } else if (ch == '[' || ch == '{') {
-      if (++depth > kMaxJsonDepth) return i;
-    } else if (ch == ']' || ch == '}') {
-      --depth;
-    }
-  }
-  return std::nullopt;
-}
-
 // The extensions this loader reads; a file that requires any other is refused by name.
 // (KHR_meshopt_compression is not: its vertex data is in meshopt's version 1 format, which meshoptimizer
 // 0.18, Debian 12's, cannot decode.)
@@ -1124,10 +1132,10 @@ Result<Model> load_model(const std::string& path, const LoadOptions& options) {
   if (!fs::is_regular_file(path, ec)) return Error{path, "", "no such file"};
   auto size = fs::file_size(path, ec);
   if (ec) return Error{path, "", "cannot read: " + ec.message()};
-  if (size < 2) return Error{path, "", "file is empty or too short to be glTF"};
   tg::Model gm;
   tg::TinyGLTF loader;
-  loader.SetImageLoader(load_image, &gm);
+  ImageContext images{&gm, path, std::nullopt};
+  loader.SetImageLoader(load_image, &images);
   loader.SetFsCallbacks(tg::FsCallbacks{file_exists, tg::ExpandFilePath, read_whole_file, tg::WriteWholeFile, nullptr});
   std::string err, warn;
   bool ok = false;
@@ -1139,22 +1147,18 @@ Result<Model> load_model(const std::string& path, const LoadOptions& options) {
     if (!in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(size)))
       return Error{path, "", "cannot read the file"};
     const std::string base = fs::path(path).parent_path().string();
+    // The container and the document are checked here first: tinygltf's own messages name no place.
     if (binary) {
       if (auto patched = glb_without_fallback_lengths(bytes)) bytes = std::move(*patched);
       if (bytes.size() > 0xffffffffu) return Error{path, "", "file is larger than 4 GiB, the most a .glb can be"};
-      if (auto s = check_glb_chunks(bytes, path); !s) return s.error();
+      auto glb = detail::check_glb_container(bytes.data(), bytes.size(), path);
+      if (!glb) return glb.error();
+      const std::string_view text(reinterpret_cast<const char*>(bytes.data()) + glb->json_at, glb->json_length);
+      if (auto s = detail::check_gltf_json(text, path, &*glb); !s) return s.error();
+    } else {
+      const std::string_view text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+      if (auto s = detail::check_gltf_json(text, path, nullptr); !s) return s.error();
     }
-    // The JSON: the whole .gltf, or as much of a .glb's first chunk as the file holds.
-    std::size_t json_at = 0, json_len = bytes.size();
-    if (binary) {
-      std::uint32_t len = 0;
-      if (bytes.size() >= 20) std::memcpy(&len, bytes.data() + 12, 4);
-      json_at = std::min<std::size_t>(20, bytes.size());
-      json_len = std::min<std::size_t>(len, bytes.size() - json_at);
-    }
-    if (auto at = too_deep(bytes.data() + json_at, json_len))
-      return Error{path, "byte " + std::to_string(json_at + *at),
-                   "the JSON nests deeper than " + std::to_string(kMaxJsonDepth) + " levels"};
     const auto n = static_cast<unsigned int>(bytes.size());
     if (binary) ok = loader.LoadBinaryFromMemory(&gm, &err, &warn, bytes.data(), n, base);
     else ok = loader.LoadASCIIFromString(&gm, &err, &warn, reinterpret_cast<const char*>(bytes.data()), n, base);
@@ -1163,6 +1167,7 @@ Result<Model> load_model(const std::string& path, const LoadOptions& options) {
   } catch (...) {
     return Error{path, "", "parse error"};
   }
+  if (!ok && images.error) return *images.error;
   if (!ok) {
     while (!err.empty() && (err.back() == '\n' || err.back() == ' ')) err.pop_back();
     return Error{path, "", err.empty() ? "not a valid glTF file" : err};

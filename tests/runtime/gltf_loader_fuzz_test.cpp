@@ -2,7 +2,7 @@
 // with an external .bin and as .glb) and the shared real models are mutated a few hundred times each
 // (JSON edits that know the glTF structure, text and byte damage, GLB header and chunk lengths, binary
 // payload damage), every mutant is written to a file and loaded. Each load must return: the model, or an
-// error that names the file. A crash, hang or sanitizer report fails the run (build with BB_SANITIZE to
+// error that names the file, a place in it (a byte, a line and column, a JSON path) and a reason. A crash, hang or sanitizer report fails the run (build with BB_SANITIZE to
 // see the latter). BB_FUZZ_ITERATIONS=N sets the mutants per seed file (to look harder).
 #include <cstdint>
 #include <cstring>
@@ -404,7 +404,7 @@ Seed hand_made(bool glb) {
 
 // ---- the run ------------------------------------------------------------------------------------------
 
-// Each mutant must load, or fail with an error that names the file (fuzz::run checks).
+// Each mutant must load, or fail with an error that names the file, a place and a reason (fuzz::run checks).
 Result<Model> load(const std::string& path) { return load_model(path); }
 
 // Mutants of a .gltf document. `bin`, when given, is the external buffer 0 (written as mutant.bin beside the

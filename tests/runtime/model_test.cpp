@@ -492,7 +492,8 @@ TEST(LoadModel, PosturePairsOverride) {
 }
 
 // Every malformed file of the Khronos validator's suite: loading never crashes; files whose
-// errors matter to a skinned-animation loader are rejected with a message naming the file.
+// errors matter to a skinned-animation loader are rejected, and every refusal names the file, a place in it
+// (a byte, a line and column, a JSON path) and the reason.
 TEST(LoadModel, ValidatorSuiteRejectedCleanly) {
   fs::path root = fs::path(BB_SHARED_DATA_DIR) / "bad-gltf" / "glTF-Validator";
   REQUIRE_SHARED(root);
@@ -523,6 +524,7 @@ TEST(LoadModel, ValidatorSuiteRejectedCleanly) {
     if (!r.ok()) {
       ++rejected;
       EXPECT_EQ(r.error().file, p);
+      EXPECT_FALSE(r.error().where.empty()) << "no place: " << r.error().message();  // a byte, a line, a JSON path
       EXPECT_FALSE(r.error().reason.empty());
     }
     if (must_fail) {

@@ -1,7 +1,7 @@
 // Tests: what the mutation fuzz tests (glTF, BVH, body) share: the mutant count (BB_FUZZ_ITERATIONS), a
 // seeded random source, byte damage, troublesome number texts, token damage of JSON text, deep nesting,
 // the places of a JSON document to edit, the shared data files, and the run that loads every mutant of a
-// seed and checks the contract: a valid result, or an error that names the file and a reason.
+// seed and checks the contract: a valid result, or an error that names the file, a place in it and a reason.
 #pragma once
 
 #include <algorithm>
@@ -279,7 +279,7 @@ struct Loaded {
 // Writes `seed` to `path` and checks that it loads, then writes `count` mutants (`mutant()` gives the next one's
 // bytes) to `path` one after another and loads each with `load(path)`, which returns a bb::Result. An accepted
 // mutant must pass `valid(value)` (which says what is wrong, or returns ""); a rejected one's error must name
-// `path` and give a reason. The first failing mutant is kept beside `path` as failing_<i>_<file name>,
+// `path`, a place in it and a reason. The first failing mutant is kept beside `path` as failing_<i>_<file name>,
 // reported with ADD_FAILURE, and ends the run. Prints the tally and a few distinct errors; returns whether
 // the seed and every mutant passed.
 template <class Mutant, class Load, class Valid = Loaded>
@@ -305,8 +305,8 @@ bool run(const fs::path& path, const std::string& seed, int count, Mutant mutant
     } else {
       ++rejected;
       const std::string msg = r.error().message();
-      if (msg.find(path.string()) == std::string::npos || r.error().reason.empty())
-        problem = "the error does not name the file and a reason: " + msg;
+      if (msg.find(path.string()) == std::string::npos || r.error().where.empty() || r.error().reason.empty())
+        problem = "the error does not name the file, a place and a reason: " + msg;
       else if (samples.size() < 4 && seen.insert(r.error().reason.substr(0, 32)).second)
         samples.push_back(msg.substr(0, 240));
     }
