@@ -3,7 +3,8 @@
 // file are mutated a few hundred times each (JSON edits that know the body's structure, troublesome
 // numbers, swapped tokens, deep nesting, bytes damaged, the file cut short), every mutant is written to a
 // file and loaded. Each load must return: a body that keeps the documented limits, or an error that names
-// the file, a place in it (a JSON path, a line and column) and a reason. BB_FUZZ_ITERATIONS=N sets the mutants per seed file (to look harder).
+// the file, a place in it (a JSON path, a line and column) and a reason. BB_FUZZ_ITERATIONS=N sets
+// the mutants per seed file (to look harder).
 #include <cmath>
 #include <cstdint>
 #include <filesystem>

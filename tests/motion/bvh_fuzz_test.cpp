@@ -3,7 +3,8 @@
 // mutated a few hundred times each (numbers replaced by troublesome ones, words and lines swapped,
 // deleted, duplicated, keywords put in the wrong place, bytes damaged, the file cut short), every mutant
 // is written to a file and loaded. Each load must return: a clip (with a finite, positive frame rate and
-// finite postures), or an error that names the file, a line and a reason. BB_FUZZ_ITERATIONS=N sets the mutants per seed.
+// finite postures), or an error that names the file, a line and a reason. BB_FUZZ_ITERATIONS=N sets
+// the mutants per seed.
 #include <cctype>
 #include <cmath>
 #include <cstdint>

@@ -1,16 +1,17 @@
-// The checks made on a glTF file's container and JSON before tinygltf reads it (runtime/src/gltf_document.cpp):
-// each damaged copy of a one-triangle file is refused with an error naming the file, the place and the reason,
-// where tinygltf 2.7 alone said "Invalid glTF binary." or "'componentType' property is missing in Accessor."
-// without a place, or silently ignored the property (an index written 1.0).
+// The checks made on a glTF file's container and JSON before tinygltf reads it
+// (runtime/src/gltf_document.cpp): each damaged copy of a one-triangle file is refused with an
+// error naming the file, the place and the reason, where tinygltf 2.7 alone said "Invalid glTF
+// binary." or "'componentType' property is missing in Accessor." without a place, or silently
+// ignored the property (an index written 1.0).
+#include <gtest/gtest.h>
+
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include "bb/runtime/model.h"
 
@@ -22,21 +23,26 @@ using json = nlohmann::json;
 
 const std::vector<float> kTriangle{0, 0, 0, 1, 0, 0, 0, 1, 0};
 
-std::string triangle_bytes() { return std::string(reinterpret_cast<const char*>(kTriangle.data()), 36); }
+std::string triangle_bytes() {
+  return std::string(reinterpret_cast<const char*>(kTriangle.data()), 36);
+}
 
-// The smallest document the loader takes: one triangle on node 0, its 36 bytes in buffer 0 (a file named by
-// `uri`, or a .glb's BIN chunk when `uri` is empty).
+// The smallest document the loader takes: one triangle on node 0, its 36 bytes in buffer 0 (a file
+// named by `uri`, or a .glb's BIN chunk when `uri` is empty).
 json triangle(const std::string& uri) {
   json buffer = {{"byteLength", 36}};
   if (!uri.empty()) buffer["uri"] = uri;
-  return {{"asset", {{"version", "2.0"}}},
-          {"buffers", json::array({buffer})},
-          {"bufferViews", json::array({{{"buffer", 0}, {"byteLength", 36}}})},
-          {"accessors", json::array({{{"bufferView", 0}, {"componentType", 5126}, {"count", 3}, {"type", "VEC3"}}})},
-          {"meshes", json::array({{{"primitives", json::array({{{"attributes", {{"POSITION", 0}}}}})}}})},
-          {"nodes", json::array({{{"mesh", 0}}})},
-          {"scenes", json::array({{{"nodes", json::array({0})}}})},
-          {"scene", 0}};
+  return {
+      {"asset", {{"version", "2.0"}}},
+      {"buffers", json::array({buffer})},
+      {"bufferViews", json::array({{{"buffer", 0}, {"byteLength", 36}}})},
+      {"accessors",
+       json::array({{{"bufferView", 0}, {"componentType", 5126}, {"count", 3}, {"type", "VEC3"}}})},
+      {"meshes",
+       json::array({{{"primitives", json::array({{{"attributes", {{"POSITION", 0}}}}})}}})},
+      {"nodes", json::array({{{"mesh", 0}}})},
+      {"scenes", json::array({{{"nodes", json::array({0})}}})},
+      {"scene", 0}};
 }
 
 fs::path dir() {
@@ -61,7 +67,8 @@ std::string glb_bytes(std::string text, const std::string& bin) {
   while (text.size() % 4) text += ' ';
   std::string out = "glTF";
   put_u32(out, 2);
-  put_u32(out, static_cast<std::uint32_t>(12 + 8 + text.size() + (bin.empty() ? 0 : 8 + bin.size())));
+  put_u32(out,
+          static_cast<std::uint32_t>(12 + 8 + text.size() + (bin.empty() ? 0 : 8 + bin.size())));
   put_u32(out, static_cast<std::uint32_t>(text.size()));
   out += "JSON" + text;
   if (!bin.empty()) {
@@ -76,7 +83,8 @@ std::string write_glb(const std::string& name, const std::string& bytes) {
   return (dir() / (name + ".glb")).string();
 }
 
-void expect_error(const std::string& path, const std::string& where, const std::string& reason_part) {
+void expect_error(const std::string& path, const std::string& where,
+                  const std::string& reason_part) {
   auto m = load_model(path);
   ASSERT_FALSE(m.ok()) << path << " loaded";
   EXPECT_EQ(m.error().file, path);
@@ -93,12 +101,16 @@ TEST(GltfDocument, TheTriangleLoadsAsGltfAndGlb) {
   EXPECT_EQ(b->lods[0].triangle_count(), 1u);
 }
 
-// Syntax errors and numbers out of range: a line and column in a .gltf, a byte of the file in a .glb.
+// Syntax errors and numbers out of range: a line and column in a .gltf, a byte of the file in a
+// .glb.
 TEST(GltfDocument, JsonErrorsNameTheirLineOrByte) {
-  expect_error(write_gltf("syntax", "{\n  \"asset\": {\"version\": \"2.0\"},\n  \"nodes\": [}\n"), "line 3, column 13",
-               "invalid JSON: syntax error");
-  expect_error(write_gltf("overflow", "{\"asset\": {\"version\": \"2.0\"},\n\"nodes\": [{\"translation\": [1e400, 0, 0]}]}"),
-               "line 2, column 32", "number overflow");  // the number's last digit
+  expect_error(write_gltf("syntax", "{\n  \"asset\": {\"version\": \"2.0\"},\n  \"nodes\": [}\n"),
+               "line 3, column 13", "invalid JSON: syntax error");
+  expect_error(
+      write_gltf(
+          "overflow",
+          "{\"asset\": {\"version\": \"2.0\"},\n\"nodes\": [{\"translation\": [1e400, 0, 0]}]}"),
+      "line 2, column 32", "number overflow");  // the number's last digit
   expect_error(write_gltf("empty", ""), "line 1, column 1", "unexpected end of input");
   // In a .glb: 20 bytes of header, then the text; its "]" is at offset 10.
   expect_error(write_glb("syntax", glb_bytes("{\"nodes\": ]}", "")), "byte 30", "invalid JSON");
@@ -115,17 +127,22 @@ TEST(GltfDocument, GlbContainerErrorsNameTheirByte) {
     std::string where, reason;
   };
   const std::vector<Case> cases = {
-      {"short", [](std::string& b) { b.resize(7); }, "byte 0", "the 12-byte GLB header is cut short: the file has 7 bytes"},
-      {"magic", [](std::string& b) { b[0] = 'G'; }, "byte 0", "not a GLB file: it starts with \"GlTF\", not \"glTF\""},
-      {"version", [](std::string& b) { b[4] = 1; }, "byte 4", "GLB version 1; this loader reads version 2"},
-      {"length", [](std::string& b) { b.pop_back(); }, "byte 8", "the header gives the file's length as " + std::to_string(good.size()) +
-                                                                   " bytes; it has " + std::to_string(good.size() - 1)},
+      {"short", [](std::string& b) { b.resize(7); }, "byte 0",
+       "the 12-byte GLB header is cut short: the file has 7 bytes"},
+      {"magic", [](std::string& b) { b[0] = 'G'; }, "byte 0",
+       "not a GLB file: it starts with \"GlTF\", not \"glTF\""},
+      {"version", [](std::string& b) { b[4] = 1; }, "byte 4",
+       "GLB version 1; this loader reads version 2"},
+      {"length", [](std::string& b) { b.pop_back(); }, "byte 8",
+       "the header gives the file's length as " + std::to_string(good.size()) + " bytes; it has " +
+           std::to_string(good.size() - 1)},
       {"first_chunk", [](std::string& b) { b.replace(16, 4, std::string("BIN\0", 4)); }, "byte 16",
        "the first chunk's type is bytes 42 49 4e 00, not \"JSON\""},
-      {"json_empty", [](std::string& b) { b.replace(12, 4, std::string(4, '\0')); }, "byte 12", "the JSON chunk is empty"},
+      {"json_empty", [](std::string& b) { b.replace(12, 4, std::string(4, '\0')); }, "byte 12",
+       "the JSON chunk is empty"},
       {"json_long", [](std::string& b) { b[13] = 0x70; }, "byte 12", "the JSON chunk's length"},
-      {"second_json", [&](std::string& b) { b.replace(bin_at + 4, 4, "JSON"); }, "byte " + std::to_string(bin_at + 4),
-       "a second JSON chunk"},
+      {"second_json", [&](std::string& b) { b.replace(bin_at + 4, 4, "JSON"); },
+       "byte " + std::to_string(bin_at + 4), "a second JSON chunk"},
       {"bin_unaligned", [&](std::string& b) { b[bin_at] = 35; }, "byte " + std::to_string(bin_at),
        "the BIN chunk's length 35 is not a multiple of 4"},
       {"bin_long", [&](std::string& b) { b[bin_at] = 40; }, "byte " + std::to_string(bin_at),
@@ -137,9 +154,10 @@ TEST(GltfDocument, GlbContainerErrorsNameTheirByte) {
     expect_error(write_glb(c.name, bytes), c.where, c.reason);
   }
   // A buffer without a uri and no BIN chunk, or a shorter one.
-  expect_error(write_glb("no_bin", glb_bytes(text, "")), "$.buffers[0]", "has no uri, and the .glb has no BIN chunk");
-  expect_error(write_glb("short_bin", glb_bytes(text, triangle_bytes().substr(0, 32))), "$.buffers[0].byteLength",
-               "36 is more than the BIN chunk's 32 bytes");
+  expect_error(write_glb("no_bin", glb_bytes(text, "")), "$.buffers[0]",
+               "has no uri, and the .glb has no BIN chunk");
+  expect_error(write_glb("short_bin", glb_bytes(text, triangle_bytes().substr(0, 32))),
+               "$.buffers[0].byteLength", "36 is more than the BIN chunk's 32 bytes");
 }
 
 // What tinygltf requires, and each reference within its array, named by JSON path.
@@ -153,56 +171,87 @@ TEST(GltfDocument, DocumentErrorsNameTheirJsonPath) {
   const std::vector<Case> cases = {
       {"root", [](json& j) { j = json::array(); }, "$", "expected an object, got array"},
       {"asset", [](json& j) { j.erase("asset"); }, "$", "missing required property \"asset\""},
-      {"version", [](json& j) { j["asset"]["version"] = 2; }, "$.asset.version", "expected a string, got number"},
-      {"dictionary", [](json& j) { j["nodes"] = json::object(); }, "$.nodes", "expected an array, got object"},
-      {"element", [](json& j) { j["meshes"].push_back(3); }, "$.meshes[1]", "expected an object, got number"},
-      {"component_type", [](json& j) { j["accessors"][0].erase("componentType"); }, "$.accessors[0]",
-       "missing required property \"componentType\""},
+      {"version", [](json& j) { j["asset"]["version"] = 2; }, "$.asset.version",
+       "expected a string, got number"},
+      {"dictionary", [](json& j) { j["nodes"] = json::object(); }, "$.nodes",
+       "expected an array, got object"},
+      {"element", [](json& j) { j["meshes"].push_back(3); }, "$.meshes[1]",
+       "expected an object, got number"},
+      {"component_type", [](json& j) { j["accessors"][0].erase("componentType"); },
+       "$.accessors[0]", "missing required property \"componentType\""},
       {"count_float", [](json& j) { j["accessors"][0]["count"] = 3.0; }, "$.accessors[0].count",
-       "is written 3.0: this loader (tinygltf 2.7) reads integers written without a fraction or exponent"},
+       "is written 3.0: this loader (tinygltf 2.7) reads integers written without a fraction or "
+       "exponent"},
       {"count_huge", [](json& j) { j["accessors"][0]["count"] = 1e30; }, "$.accessors[0].count",
        "is 1e+30, not a whole number from 0 to 2^53"},
       {"count_fraction", [](json& j) { j["accessors"][0]["count"] = 2.5; }, "$.accessors[0].count",
        "is 2.5, not a whole number from 0 to 2^53"},
-      {"count_negative", [](json& j) { j["accessors"][0]["count"] = -3; }, "$.accessors[0].count", "is -3; it must be 0 or more"},
-      {"type", [](json& j) { j["accessors"][0]["type"] = "VEC5"; }, "$.accessors[0].type", "\"VEC5\" is not an accessor type"},
-      {"view_missing", [](json& j) { j["accessors"][0]["bufferView"] = 1; }, "$.accessors[0].bufferView",
-       "bufferViews[1] does not exist (the file has 1)"},
-      {"stride", [](json& j) { j["bufferViews"][0]["byteStride"] = 6; }, "$.bufferViews[0].byteStride",
-       "6 is not a multiple of 4 up to 252"},
-      {"attributes", [](json& j) { j["meshes"][0]["primitives"][0].erase("attributes"); }, "$.meshes[0].primitives[0]",
-       "missing required property \"attributes\""},
+      {"count_negative", [](json& j) { j["accessors"][0]["count"] = -3; }, "$.accessors[0].count",
+       "is -3; it must be 0 or more"},
+      {"type", [](json& j) { j["accessors"][0]["type"] = "VEC5"; }, "$.accessors[0].type",
+       "\"VEC5\" is not an accessor type"},
+      {"view_missing", [](json& j) { j["accessors"][0]["bufferView"] = 1; },
+       "$.accessors[0].bufferView", "bufferViews[1] does not exist (the file has 1)"},
+      {"stride", [](json& j) { j["bufferViews"][0]["byteStride"] = 6; },
+       "$.bufferViews[0].byteStride", "6 is not a multiple of 4 up to 252"},
+      {"attributes", [](json& j) { j["meshes"][0]["primitives"][0].erase("attributes"); },
+       "$.meshes[0].primitives[0]", "missing required property \"attributes\""},
       {"position", [](json& j) { j["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = 1.0; },
        "$.meshes[0].primitives[0].attributes.POSITION", "is written 1.0"},
-      {"indices", [](json& j) { j["meshes"][0]["primitives"][0]["indices"] = 4; }, "$.meshes[0].primitives[0].indices",
-       "accessors[4] does not exist (the file has 1)"},
-      {"indices_without_view", [](json& j) {
+      {"indices", [](json& j) { j["meshes"][0]["primitives"][0]["indices"] = 4; },
+       "$.meshes[0].primitives[0].indices", "accessors[4] does not exist (the file has 1)"},
+      {"indices_without_view",
+       [](json& j) {
          j["accessors"].push_back({{"componentType", 5123}, {"count", 3}, {"type", "SCALAR"}});
          j["meshes"][0]["primitives"][0]["indices"] = 1;
-       }, "$.meshes[0].primitives[0].indices", "accessors[1] has no bufferView"},
-      {"texture", [](json& j) {
-         j["materials"] = json::array({{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}}});
-       }, "$.materials[0].pbrMetallicRoughness.baseColorTexture.index", "textures[0] does not exist (the file has 0)"},
-      {"image", [](json& j) { j["images"] = json::array({json::object()}); }, "$.images[0]", "has neither a uri nor a bufferView"},
-      {"child", [](json& j) { j["nodes"][0]["children"] = {0, 7}; }, "$.nodes[0].children[1]", "nodes[7] does not exist"},
-      {"scene", [](json& j) { j["scene"] = 1; }, "$.scene", "scenes[1] does not exist (the file has 1)"},
-      {"joints", [](json& j) { j["skins"] = json::array({json::object()}); }, "$.skins[0]", "missing required property \"joints\""},
-      {"channel", [](json& j) {
-         j["animations"] = json::array({{{"samplers", json::array({{{"input", 0}, {"output", 0}}})},
-                                          {"channels", json::array({{{"sampler", 1}, {"target", {{"node", 0}, {"path", "scale"}}}}})}}});
-       }, "$.animations[0].channels[0].sampler", "sampler 1 does not exist (the animation has 1)"},
-      {"camera", [](json& j) { j["cameras"] = json::array({{{"type", "perspective"}, {"perspective", {{"znear", 0.1}}}}}); },
+       },
+       "$.meshes[0].primitives[0].indices", "accessors[1] has no bufferView"},
+      {"texture",
+       [](json& j) {
+         j["materials"] =
+             json::array({{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}}});
+       },
+       "$.materials[0].pbrMetallicRoughness.baseColorTexture.index",
+       "textures[0] does not exist (the file has 0)"},
+      {"image", [](json& j) { j["images"] = json::array({json::object()}); }, "$.images[0]",
+       "has neither a uri nor a bufferView"},
+      {"child",
+       [](json& j) {
+         j["nodes"][0]["children"] = {0, 7};
+       },
+       "$.nodes[0].children[1]", "nodes[7] does not exist"},
+      {"scene", [](json& j) { j["scene"] = 1; }, "$.scene",
+       "scenes[1] does not exist (the file has 1)"},
+      {"joints", [](json& j) { j["skins"] = json::array({json::object()}); }, "$.skins[0]",
+       "missing required property \"joints\""},
+      {"channel",
+       [](json& j) {
+         j["animations"] = json::array(
+             {{{"samplers", json::array({{{"input", 0}, {"output", 0}}})},
+               {"channels",
+                json::array({{{"sampler", 1}, {"target", {{"node", 0}, {"path", "scale"}}}}})}}});
+       },
+       "$.animations[0].channels[0].sampler", "sampler 1 does not exist (the animation has 1)"},
+      {"camera",
+       [](json& j) {
+         j["cameras"] = json::array({{{"type", "perspective"}, {"perspective", {{"znear", 0.1}}}}});
+       },
        "$.cameras[0].perspective", "missing required property \"yfov\""},
-      {"byte_length", [](json& j) { j["buffers"][0].erase("byteLength"); }, "$.buffers[0]", "missing required property \"byteLength\""},
-      {"byte_length_0", [](json& j) { j["buffers"][0]["byteLength"] = 0; }, "$.buffers[0].byteLength", "is 0; it must be 1 or more"},
-      {"no_uri", [](json& j) { j["buffers"][0].erase("uri"); }, "$.buffers[0]", "has no uri: a .gltf file's buffer must name its data"},
-      {"uri_missing_file", [](json& j) { j["buffers"][0]["uri"] = "nowhere.bin"; }, "$.buffers[0].uri",
-       "names \"nowhere.bin\", which is not a file beside"},
-      {"uri_size", [](json& j) { j["buffers"][0]["byteLength"] = 40; }, "$.buffers[0].uri", "holds 36 bytes; byteLength says 40"},
-      {"data_uri_size", [](json& j) { j["buffers"][0]["uri"] = "data:application/octet-stream;base64,AAAA"; }, "$.buffers[0].uri",
-       "the data: URI holds 3 bytes; byteLength says 36"},
-      {"data_uri_type", [](json& j) { j["buffers"][0]["uri"] = "data:application/gltf-buffer,0"; }, "$.buffers[0].uri",
-       "a data: URI this loader does not read"},
+      {"byte_length", [](json& j) { j["buffers"][0].erase("byteLength"); }, "$.buffers[0]",
+       "missing required property \"byteLength\""},
+      {"byte_length_0", [](json& j) { j["buffers"][0]["byteLength"] = 0; },
+       "$.buffers[0].byteLength", "is 0; it must be 1 or more"},
+      {"no_uri", [](json& j) { j["buffers"][0].erase("uri"); }, "$.buffers[0]",
+       "has no uri: a .gltf file's buffer must name its data"},
+      {"uri_missing_file", [](json& j) { j["buffers"][0]["uri"] = "nowhere.bin"; },
+       "$.buffers[0].uri", "names \"nowhere.bin\", which is not a file beside"},
+      {"uri_size", [](json& j) { j["buffers"][0]["byteLength"] = 40; }, "$.buffers[0].uri",
+       "holds 36 bytes; byteLength says 40"},
+      {"data_uri_size",
+       [](json& j) { j["buffers"][0]["uri"] = "data:application/octet-stream;base64,AAAA"; },
+       "$.buffers[0].uri", "the data: URI holds 3 bytes; byteLength says 36"},
+      {"data_uri_type", [](json& j) { j["buffers"][0]["uri"] = "data:application/gltf-buffer,0"; },
+       "$.buffers[0].uri", "a data: URI this loader does not read"},
   };
   for (const Case& c : cases) {
     json j = triangle("t.bin");
@@ -211,7 +260,8 @@ TEST(GltfDocument, DocumentErrorsNameTheirJsonPath) {
   }
 }
 
-// stb_image allocates what a PNG header asks before it reads a pixel: 20000 x 10 is refused from the header.
+// stb_image allocates what a PNG header asks before it reads a pixel: 20000 x 10 is refused from
+// the header.
 TEST(GltfDocument, ImagesLargerThanTheLoaderTakesAreRefusedFromTheirHeader) {
   std::string png("\x89PNG\r\n\x1a\n\0\0\0\x0dIHDR", 16);
   for (std::uint32_t v : {20000u, 10u})
@@ -224,7 +274,8 @@ TEST(GltfDocument, ImagesLargerThanTheLoaderTakesAreRefusedFromTheirHeader) {
   j["bufferViews"].push_back({{"buffer", 0}, {"byteOffset", 36}, {"byteLength", png.size()}});
   j["images"] = json::array({{{"bufferView", 1}, {"mimeType", "image/png"}}});
   j["textures"] = json::array({{{"source", 0}}});
-  j["materials"] = json::array({{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}}});
+  j["materials"] =
+      json::array({{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}}});
   j["meshes"][0]["primitives"][0]["material"] = 0;
   expect_error(write_glb("huge_png", glb_bytes(j.dump(), bin)), "$.images[0]",
                "is 20000 x 10 pixels; this loader takes textures up to 16384 on a side");

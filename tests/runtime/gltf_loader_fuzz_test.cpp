@@ -2,8 +2,9 @@
 // with an external .bin and as .glb) and the shared real models are mutated a few hundred times each
 // (JSON edits that know the glTF structure, text and byte damage, GLB header and chunk lengths, binary
 // payload damage), every mutant is written to a file and loaded. Each load must return: the model, or an
-// error that names the file, a place in it (a byte, a line and column, a JSON path) and a reason. A crash, hang or sanitizer report fails the run (build with BB_SANITIZE to
-// see the latter). BB_FUZZ_ITERATIONS=N sets the mutants per seed file (to look harder).
+// error that names the file, a place in it (a byte, a line and column, a JSON path) and a reason. A
+// crash, hang or sanitizer report fails the run (build with BB_SANITIZE to see the latter).
+// BB_FUZZ_ITERATIONS=N sets the mutants per seed file (to look harder).
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
