@@ -73,9 +73,8 @@ struct ImageContext {
 bool load_image(tg::Image* image, const int image_idx, std::string* err, std::string* warn, int req_width, int req_height,
                 const unsigned char* bytes, int size, void* user_data) {
   auto* ctx = static_cast<ImageContext*>(user_data);
-  auto refuse = [&](const std::string& where, const std::string& reason) {
+  auto refuse = [&](const std::string& where, const std::string& reason) {  // load_model returns ctx->error
     if (!ctx->error) ctx->error = Error{ctx->file, where, reason};
-    if (err) *err += where + ": " + reason + "\n";
     return false;
   };
   if (image->bufferView >= 0) {
