@@ -713,7 +713,8 @@ void add_flow_command(CLI::App& app, int* status) {
                 "where --scaling runs them (10x); up to four more runs (--sweep view's serve), into targets.md and the "
                 "report's \"targets\"");
   cmd->add_option("--scaling-humans", a->scaling_list, "Crowd sizes of --scaling")->capture_default_str();
-  cmd->add_option("--scaling-frames", a->scaling_frames, "Frames per crowd size of --scaling")
+  cmd->add_option("--scaling-frames", a->scaling_frames,
+                  "Measured frames per crowd size of --scaling (after 3 warm-up frames)")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
   cmd->add_option("-o,--output", a->out, "Output folder")->capture_default_str();
