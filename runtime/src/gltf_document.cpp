@@ -210,6 +210,38 @@ std::string percent_decoded(const std::string& uri) {
   return out;
 }
 
+// The file a uri that is not a data: URI names: a path relative to the glTF file (tinygltf joins
+// it to the file's folder), %XX escapes decoded. A URI with a scheme (http:, file:) is not
+// fetched, and an absolute path is not one tinygltf can join, so both are refused, as is a name
+// that is not a file there.
+std::filesystem::path external_file(const std::string& u, const std::string& w,
+                                    const std::string& path) {
+  namespace fs = std::filesystem;
+  if (u.empty()) fail(w, "is empty; it must name a file beside " + path + " or hold a data: URI");
+  std::size_t k = 0;
+  if (std::isalpha(static_cast<unsigned char>(u[0])))
+    for (k = 1; k < u.size() && (std::isalnum(static_cast<unsigned char>(u[k])) || u[k] == '+' ||
+                                 u[k] == '-' || u[k] == '.');
+         ++k) {
+    }
+  if (k > 0 && k < u.size() && u[k] == ':')
+    fail(w, "names \"" + u + "\", a URI with the scheme " + u.substr(0, k + 1) +
+                ", which this loader does not fetch: it reads data: URIs and files named relative "
+                "to the "
+                "folder of " +
+                path);
+  const std::string name = percent_decoded(u);
+  if (name[0] == '/' || name[0] == '\\')
+    fail(w, "names the absolute path \"" + u +
+                "\": this loader reads data: URIs and files named relative to the folder of " +
+                path);
+  const fs::path file = fs::path(path).parent_path() / name;
+  std::error_code ec;
+  if (!fs::is_regular_file(file, ec))
+    fail(w, "names \"" + u + "\", which is not a file beside " + path);
+  return file;
+}
+
 bool is_meshopt_fallback(const json& buffer) {
   const json* ext = find(buffer, "extensions");
   const json* e = ext && ext->is_object() ? find(*ext, "EXT_meshopt_compression") : nullptr;
@@ -254,10 +286,8 @@ void buffer_data(const json& b, const std::string& w, std::size_t index, std::ui
          "application/octet-stream or application/gltf-buffer)");
   }
   namespace fs = std::filesystem;
-  const fs::path file = fs::path(path).parent_path() / percent_decoded(u);
+  const fs::path file = external_file(u, at(w, "uri"), path);
   std::error_code ec;
-  if (u.empty() || !fs::is_regular_file(file, ec))
-    fail(at(w, "uri"), "names \"" + u + "\", which is not a file beside " + path);
   const std::uintmax_t size = fs::file_size(file, ec);
   if (ec) fail(at(w, "uri"), "cannot read " + file.string() + ": " + ec.message());
   if (size != length)
@@ -339,7 +369,13 @@ void check_document(const json& doc, const std::string& path, const GlbLayout* g
     if (view == uri)
       fail(w, view ? "has both a uri and a bufferView; it may have one"
                    : "has neither a uri nor a bufferView");
-    if (uri) text(*find(im, "uri"), at(w, "uri"));
+    if (uri) {
+      // A file beside the glTF (tinygltf would leave a missing one empty and the material
+      // untextured, without a word); a data: URI is decoded by the image callback, which names
+      // what it cannot decode.
+      const std::string& u = text(*find(im, "uri"), at(w, "uri"));
+      if (u.rfind("data:", 0) != 0) external_file(u, at(w, "uri"), path);
+    }
     reference(im, w, "bufferView", false, doc, "bufferViews");
   });
   each(doc, "textures", [&](const json& t, const std::string& w, std::size_t) {

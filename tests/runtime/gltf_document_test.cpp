@@ -245,6 +245,16 @@ TEST(GltfDocument, DocumentErrorsNameTheirJsonPath) {
        "has no uri: a .gltf file's buffer must name its data"},
       {"uri_missing_file", [](json& j) { j["buffers"][0]["uri"] = "nowhere.bin"; },
        "$.buffers[0].uri", "names \"nowhere.bin\", which is not a file beside"},
+      {"uri_empty", [](json& j) { j["buffers"][0]["uri"] = ""; }, "$.buffers[0].uri",
+       "is empty; it must name a file beside"},
+      // tinygltf cannot join an absolute path to the folder (it said "File not found" of a file
+      // that is there); a URI with a scheme is not fetched.
+      {"uri_absolute", [](json& j) { j["buffers"][0]["uri"] = (dir() / "t.bin").string(); },
+       "$.buffers[0].uri", "names the absolute path \""},
+      {"uri_http", [](json& j) { j["buffers"][0]["uri"] = "http://example.com/t.bin"; },
+       "$.buffers[0].uri", "a URI with the scheme http:, which this loader does not fetch"},
+      {"uri_file", [](json& j) { j["buffers"][0]["uri"] = "file:t.bin"; }, "$.buffers[0].uri",
+       "a URI with the scheme file:, which this loader does not fetch"},
       {"uri_size", [](json& j) { j["buffers"][0]["byteLength"] = 40; }, "$.buffers[0].uri",
        "holds 36 bytes; byteLength says 40"},
       {"data_uri_size",
@@ -258,6 +268,36 @@ TEST(GltfDocument, DocumentErrorsNameTheirJsonPath) {
     c.damage(j);
     expect_error(write_gltf(c.name, j.dump(1)), c.where, c.reason);
   }
+}
+
+// An image file is read as a buffer's is: beside the glTF, named relative to it (%XX escapes
+// decoded). A missing one left the material untextured without a word.
+TEST(GltfDocument, ImageFilesAreFoundBesideTheGltfOrRefused) {
+  const std::string png(
+      "\x89\x50\x4e\x47\x0d\x0a\x1a\x0a\x00\x00\x00\x0d\x49\x48\x44\x52\x00\x00\x00\x01\x00\x00"
+      "\x00\x01\x08\x06\x00\x00\x00\x1f\x15\xc4\x89\x00\x00\x00\x0d\x49\x44\x41\x54\x78\x9c\x63"
+      "\xf8\xcf\xc0\xf0\x1f\x00\x05\x00\x01\xff\x89\x99\x3d\x1d\x00\x00\x00\x00\x49\x45\x4e\x44"
+      "\xae\x42\x60\x82",
+      70);  // 1 x 1, opaque red
+  std::ofstream(dir() / "red dot.png", std::ios::binary) << png;
+  auto textured = [](const std::string& uri) {
+    json j = triangle("t.bin");
+    j["images"] = json::array({{{"uri", uri}}});
+    j["textures"] = json::array({{{"source", 0}}});
+    j["materials"] =
+        json::array({{{"pbrMetallicRoughness", {{"baseColorTexture", {{"index", 0}}}}}}});
+    j["meshes"][0]["primitives"][0]["material"] = 0;
+    return j.dump(1);
+  };
+  auto m = load_model(write_gltf("image_beside", textured("red%20dot.png")));
+  ASSERT_TRUE(m.ok()) << m.error().message();
+  ASSERT_EQ(m->textures.size(), 1u);
+  expect_error(write_gltf("image_missing", textured("red.png")), "$.images[0].uri",
+               "names \"red.png\", which is not a file beside");
+  expect_error(write_gltf("image_absolute", textured((dir() / "red dot.png").string())),
+               "$.images[0].uri", "names the absolute path");
+  expect_error(write_gltf("image_http", textured("https://example.com/red.png")), "$.images[0].uri",
+               "a URI with the scheme https:");
 }
 
 // stb_image allocates what a PNG header asks before it reads a pixel: 20000 x 10 is refused from
