@@ -224,17 +224,13 @@ std::filesystem::path external_file(const std::string& u, const std::string& w,
                                  u[k] == '-' || u[k] == '.');
          ++k) {
     }
+  const std::string reads =
+      "this loader reads data: URIs and files named relative to the folder of " + path;
   if (k > 0 && k < u.size() && u[k] == ':')
     fail(w, "names \"" + u + "\", a URI with the scheme " + u.substr(0, k + 1) +
-                ", which this loader does not fetch: it reads data: URIs and files named relative "
-                "to the "
-                "folder of " +
-                path);
+                ", which is not fetched: " + reads);
   const std::string name = percent_decoded(u);
-  if (name[0] == '/' || name[0] == '\\')
-    fail(w, "names the absolute path \"" + u +
-                "\": this loader reads data: URIs and files named relative to the folder of " +
-                path);
+  if (name[0] == '/' || name[0] == '\\') fail(w, "names the absolute path \"" + u + "\": " + reads);
   const fs::path file = fs::path(path).parent_path() / name;
   std::error_code ec;
   if (!fs::is_regular_file(file, ec))
