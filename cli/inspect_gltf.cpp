@@ -59,12 +59,7 @@ std::vector<glm::vec3> rest_positions(const runtime::Model& m) {
   runtime::palette_matrices(m, world, pal);
   std::vector<glm::vec3> out;
   out.reserve(m.lods[0].vertices.size());
-  for (const auto& v : m.lods[0].vertices) {
-    glm::vec3 p(0.0f);
-    for (int k = 0; k < 4; ++k)
-      if (v.weights[k] > 0.0f) p += v.weights[k] * glm::vec3(pal[v.joints[k]] * glm::vec4(v.position, 1.0f));
-    out.push_back(p);
-  }
+  for (const auto& v : m.lods[0].vertices) out.push_back(runtime::skinned_position(v, pal));
   return out;
 }
 

@@ -79,14 +79,6 @@ WeldedPrimitive weld(const MeshLod& lod, const Primitive& p) {
   return w;
 }
 
-// A skinned vertex (linear blend of its four palette matrices).
-glm::vec3 skinned(const Vertex& v, const std::vector<glm::mat4>& palette) {
-  glm::mat4 m(0.0f);
-  for (int k = 0; k < 4; ++k)
-    if (v.weights[k] > 0.0f && v.joints[k] < palette.size()) m += v.weights[k] * palette[v.joints[k]];
-  return glm::vec3(m * glm::vec4(v.position, 1.0f));
-}
-
 // The skin's poses the made levels are checked in (palette matrices, model space): the rest pose
 // and instants evenly spread over each clip, 12 in all (at least 2 a clip).
 std::vector<std::vector<glm::mat4>> check_poses(const Model& model) {
@@ -116,9 +108,9 @@ float skinned_error(const std::vector<Vertex>& base, const MeshLod& lod, const s
   std::vector<glm::vec3> corners(lod.vertices.size());
   float worst = 0.0f;
   for (const auto& pose : poses) {
-    for (std::size_t v = 0; v < lod.vertices.size(); ++v) corners[v] = skinned(lod.vertices[v], pose);
+    for (std::size_t v = 0; v < lod.vertices.size(); ++v) corners[v] = skinned_position(lod.vertices[v], pose);
     const detail::TriangleGrid grid(corners, lod.indices);
-    for (const Vertex& v : base) worst = std::max(worst, grid.distance(skinned(v, pose)));
+    for (const Vertex& v : base) worst = std::max(worst, grid.distance(skinned_position(v, pose)));
   }
   return worst;
 }

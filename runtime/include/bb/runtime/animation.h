@@ -33,6 +33,15 @@ void world_matrices(const Model& model, std::span<const Transform> locals,
 void palette_matrices(const Model& model, std::span<const glm::mat4> world,
                       std::span<glm::mat4> out);
 
+// A vertex skinned by `palette` (palette_matrices' output): the linear blend of its four joints'
+// matrices applied to its position (model space). Joints outside the palette count for nothing.
+inline glm::vec3 skinned_position(const Vertex& v, std::span<const glm::mat4> palette) {
+  glm::mat4 m(0.0f);
+  for (int k = 0; k < 4; ++k)
+    if (v.weights[k] > 0.0f && v.joints[k] < palette.size()) m += v.weights[k] * palette[v.joints[k]];
+  return glm::vec3(m * glm::vec4(v.position, 1.0f));
+}
+
 // Position of a posture point given the node world matrices.
 inline glm::vec3 point_position(const PosturePoint& p, std::span<const glm::mat4> world) {
   return glm::vec3(world[p.node] * glm::vec4(p.offset, 1.0f));
