@@ -142,9 +142,11 @@ int run_demo(const std::string& dir, int frames, bool full) {
   a.out = dir;
   a.frames = frames;
   a.quiet = true;
+  a.animation = true;  // animation.png
   ordered_json main_run, posture, view, scaling;
   std::printf("flow: 20 humans, both paths, %d frames ...\n", frames);
   if (int st = run_flow_command(a, &main_run); st) return st;
+  a.animation = false;  // only the main run and the part cards' (below) write one
   FlowArgs s = a;
   s.frames = std::max(10, frames / 2);
   s.main_files = false;  // the main run's frames and flow.json stay
@@ -161,6 +163,7 @@ int run_demo(const std::string& dir, int frames, bool full) {
   pc.posture = "off";
   pc.view = "8";
   pc.impostor_parts = true;
+  pc.animation = true;  // parts/animation.png: the limbs walk on between snapshots
   pc.sweep = "view";
   pc.out = (fs::path(dir) / "parts").string();
   ordered_json parts;
@@ -171,6 +174,7 @@ int run_demo(const std::string& dir, int frames, bool full) {
   // Depth-corrected cards (the 8-degree run alone), then the best image quality: 2 texels per
   // pixel, blended edges, depth-corrected cards with a depth pass.
   FlowArgs pd = pc;
+  pd.animation = false;
   pd.sweep.clear();
   pd.card_depth = "on";
   pd.out = (fs::path(dir) / "parts_depth").string();
@@ -178,6 +182,7 @@ int run_demo(const std::string& dir, int frames, bool full) {
   std::printf("flow: depth-corrected part cards, view 8 degrees, posture off ...\n");
   if (int st = run_flow_command(pd, &parts_depth); st) return st;
   FlowArgs pq = pc;
+  pq.animation = false;
   pq.sweep.clear();  // the 8-degree run alone
   pq.texels_per_pixel = 2.0f;
   pq.impostor_edges = "blend";
@@ -390,6 +395,9 @@ int run_demo(const std::string& dir, int frames, bool full) {
      << "- `default_body.png`: the implicit skin, ray-cast\n"
      << "- `lods.png`: every level of detail, finest first; `proxies.png`: the hands at level 0 (left) and the "
      << "lowest level's textured proxies (right)\n"
+     << "- `animation.png`: the main run's frames as an animated PNG (open it in a web browser), impostors (left) "
+     << "and geometry (right) at half size, 30 frames per second: the whole impostors hold their pose between "
+     << "refreshes; `parts/animation.png`: the part cards' run, whose limbs walk on between snapshots\n"
      << "- `frame_*_impostors_vs_geometry.png`: impostors (left) and geometry (right) of the same frame; "
      << "`parts/frame_*`, `parts_depth/frame_*`, `parts_quality/frame_*`: the same with part cards; `budget/`: the refresh-budget run's report and frames\n"
      << "- `sweep_*.png`, `view_whole_vs_parts*.png`, `scaling.png`, `parts/sweep_view*.png`: the charts; `*.csv`, "

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 #include <sstream>
 #include <utility>
 
@@ -16,6 +17,7 @@
 
 #include "bb/runtime/headless.h"
 #include "bb/runtime/model.h"
+#include "animated_png.h"
 #include "chart.h"
 #include "commands.h"
 #include "io.h"
@@ -121,6 +123,34 @@ std::vector<unsigned char> side_by_side(const FlowFrameImages& im, int w, int h)
         out[(static_cast<size_t>(y) * 2 * w + x) * 4 + k] = im.impostor.empty() ? 0 : over(im.impostor);
         out[(static_cast<size_t>(y) * 2 * w + w + x) * 4 + k] = im.geometry.empty() ? 0 : over(im.geometry);
       }
+  return out;
+}
+
+// The animation's frame: the paths drawn (impostors left, geometry right), each at half the
+// window's size (every 2x2 pixels averaged, premultiplied) over side_by_side's grey, RGB.
+std::vector<unsigned char> half_side_by_side_rgb(const FlowFrameImages& im, int w, int h, int* out_w, int* out_h) {
+  const int hw = w / 2, hh = h / 2;
+  std::vector<const std::vector<unsigned char>*> halves;
+  for (const auto* src : {&im.impostor, &im.geometry})
+    if (!src->empty()) halves.push_back(src);
+  *out_w = hw * static_cast<int>(halves.size());
+  *out_h = hh;
+  std::vector<unsigned char> out(static_cast<size_t>(*out_w) * hh * 3);
+  for (std::size_t k = 0; k < halves.size(); ++k) {
+    const unsigned char* src = halves[k]->data();
+    for (int y = 0; y < hh; ++y)
+      for (int x = 0; x < hw; ++x) {
+        int sum[4] = {0, 0, 0, 0};
+        for (int dy = 0; dy < 2; ++dy)
+          for (int dx = 0; dx < 2; ++dx) {
+            const unsigned char* p = src + (static_cast<size_t>(2 * y + dy) * w + 2 * x + dx) * 4;
+            for (int c = 0; c < 4; ++c) sum[c] += p[c];
+          }
+        unsigned char* q = &out[(static_cast<size_t>(y) * *out_w + k * hw + x) * 3];
+        for (int c = 0; c < 3; ++c)  // (sum / 4) + 235 (1 - sum[3] / (4 * 255)), rounded
+          q[c] = static_cast<unsigned char>(std::min(255, (sum[c] * 255 + 235 * (4 * 255 - sum[3]) + 510) / 1020));
+      }
+  }
   return out;
 }
 
@@ -361,9 +391,33 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (!a.json) std::fprintf(stderr, "flow: %s, %d humans, %d frames at %dx%d on %s\n", model_list.c_str(), s.humans,
                             s.frames, s.width, s.height, device.c_str());
 
+  // --animation: each measured frame kept at half size, compressed after the run (compressing
+  // between the timed frames slowed the next ones: flow test bed, 60 frames, geometry 17.5-18.8
+  // -> 20.3-24.9 ms a frame).
+  std::optional<AnimatedPng> animation;
+  std::vector<std::vector<unsigned char>> animation_frames;
+  int animation_w = 0, animation_h = 0;
+  // At most kAnimationBytes of them: 128 frames (4.3 s) at 1280x1024.
+  constexpr std::size_t kAnimationBytes = std::size_t{256} << 20;
+  if (a.animation && a.main_files)
+    s.on_frame = [&](const FlowFrameImages& im) {
+      const std::size_t paths = (im.geometry.empty() ? 0 : 1) + (im.impostor.empty() ? 0 : 1);
+      const std::size_t bytes = paths * static_cast<std::size_t>(s.width / 2) * static_cast<std::size_t>(s.height / 2) * 3;
+      if (!animation_frames.empty() && (animation_frames.size() + 1) * bytes > kAnimationBytes) return;
+      animation_frames.push_back(half_side_by_side_rgb(im, s.width, s.height, &animation_w, &animation_h));
+    };
   ordered_json report;
   auto result = run_flow(model, s, device);
+  s.on_frame = nullptr;  // the sweeps and crowd sizes below copy these settings
   if (!result) return fail(result.error().message());
+  if (!animation_frames.empty()) {
+    animation.emplace(animation_w, animation_h, std::uint16_t{1},
+                      static_cast<std::uint16_t>(std::lround(std::clamp(s.fps, 1.0f, 1000.0f))));
+    for (const auto& f : animation_frames)
+      if (auto st = animation->add_rgb(f.data()); !st)
+        return fail((fs::path(a.out) / "animation.png").string() + ": " + st.error().message());
+    animation_frames = {};
+  }
   if (s.geometry && result->geometry_target_samples != s.msaa)
     std::fprintf(stderr, "flow: --msaa %d: this device gives %d samples per pixel, measured with those\n", s.msaa,
                  result->geometry_target_samples);
@@ -407,6 +461,12 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
       if (std::all_of(number.begin(), number.end(), [](unsigned char c) { return std::isdigit(c) != 0; }))
         fs::remove(it->path(), ec);
     }
+    if (!animation) fs::remove(fs::path(a.out) / "animation.png", ec);  // an earlier run's
+  }
+  if (animation) {
+    const std::string p = (fs::path(a.out) / "animation.png").string();
+    if (auto st = animation->write(p); !st) return fail(st.error().message());
+    written.push_back(p);
   }
   for (const auto& im : result->images) {
     if (im.geometry.empty() && im.impostor.empty()) continue;
@@ -651,6 +711,8 @@ void add_flow_command(CLI::App& app, int* status) {
       ->capture_default_str();
   cmd->add_option("--snapshot-camera", a->snapshot_camera, "Snapshot camera: perspective (from the eye) or orthographic")
       ->capture_default_str();
+  cmd->add_flag("--animation", a->animation,
+                "Also write animation.png: the measured frames as an animated PNG at the scene's 30 frames per second, impostors | geometry at half size (browsers play it; the first 256 MB of frames, 128 at 1280x1024)");
   cmd->add_flag("--hold-poses", a->hold_poses, "Every human keeps one pose while walking (isolates the pose lag)");
   cmd->add_option("--lods", a->lods,
                   "A model file with one level: up to N coarser levels made at load for both paths, each used where "

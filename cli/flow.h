@@ -9,6 +9,7 @@
 // one when its edges blend (runtime::impostor_target_samples: the same frames), else the same.
 #pragma once
 
+#include <functional>
 #include <optional>
 #include <span>
 #include <string>
@@ -22,6 +23,12 @@
 #include <nlohmann/json.hpp>
 
 namespace bb::cli {
+
+// One measured frame's pictures, as each path drew it (premultiplied: the background is clear).
+struct FlowFrameImages {
+  int frame = 0;
+  std::vector<unsigned char> geometry, impostor;  // RGBA8, rows top to bottom
+};
 
 struct FlowSettings {
   int humans = 20;
@@ -78,11 +85,9 @@ struct FlowSettings {
   // glTF's unit), else measured (BakedClip::ground_speed), else none (played at its own rate).
   float clip_speed_mps = 0;
   std::vector<int> keep_frames;  // measured frame indices whose images are returned
-};
-
-struct FlowFrameImages {
-  int frame = 0;
-  std::vector<unsigned char> geometry, impostor;  // RGBA8, rows top to bottom
+  // Called with both paths' pictures of every measured frame, in order, each read back after the
+  // frame's timing (`bodybuilder flow --animation`); empty: none.
+  std::function<void(const FlowFrameImages&)> on_frame;
 };
 
 struct FlowResult {
@@ -187,6 +192,9 @@ struct FlowArgs {
   // false: no sample frames and no flow.json, only the sweep's or crowd sizes' files (the demo's
   // later runs, which share the main run's folder).
   bool main_files = true;
+  // --animation: the main run's frames as an animated PNG, impostors | geometry at half size
+  // (animation.png; with main_files only).
+  bool animation = false;
   std::string scaling_list = "20,100,500,1000,2000,5000,10000";
   int scaling_frames = 10;
 };

@@ -253,6 +253,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
     int mf = f - s.warmup;
     bool compare = measured && s.geometry && s.impostor && s.quality_every > 0 && mf % s.quality_every == 0;
     bool keep = measured && std::find(s.keep_frames.begin(), s.keep_frames.end(), mf) != s.keep_frames.end();
+    const bool stream = measured && static_cast<bool>(s.on_frame);
     FlowFrameImages imgs;
     imgs.frame = mf;
     // One path: plan and draw every model's crowd into its target, timed until the GPU has
@@ -342,7 +343,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
         g_times.push_back(ms);
         tri_g += static_cast<double>(st.geometry_triangles);
       }
-      if (compare || keep) imgs.geometry = (*target_g)->read_rgba();
+      if (compare || keep || stream) imgs.geometry = (*target_g)->read_rgba();
     }
     if (s.impostor) {
       const FrameStats st = draw(**target_i, RenderMode::kImpostor, &ms);
@@ -360,7 +361,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
         atlas_use += st.atlas_pixel_use;
         atlas_pages = std::max(atlas_pages, st.atlas_pages_used);
       }
-      if (compare || keep) imgs.impostor = (*target_i)->read_rgba();
+      if (compare || keep || stream) imgs.impostor = (*target_i)->read_rgba();
       if (compare) {  // after the timed frame: reads the fitted rectangles back
         for (int m = 0; m < nm; ++m) drawn_texels += renderers[m]->drawn_quad_texels(*plans[m]);
         ++drawn_frames;
@@ -393,6 +394,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
       psnr_min = std::min(psnr_min, p);
       ++compared;
     }
+    if (stream) s.on_frame(imgs);
     if (keep) out.images.push_back(std::move(imgs));
   }
   int n = std::max(1, s.frames);

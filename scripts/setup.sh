@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Installs what bodybuilder needs on Debian 12: compilers, libraries (Debian packages only) and two test
-# tools, the Khronos glTF validator and gltfpack (npm, into tools/node_modules). Safe to run again; it skips
+# Installs what bodybuilder needs on Debian 12: compilers, libraries (Debian packages only) and three test
+# tools, the Khronos glTF validator, gltfpack and UPNG.js (npm, into tools/node_modules). Safe to run again; it skips
 # what is there.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -29,10 +29,12 @@ if [ ${#missing[@]} -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 
-# The Khronos glTF validator, used by the tests on every glTF we write, and gltfpack, with which the tests
-# make quantized and meshopt-compressed copies of the external models for the loader.
-if [ ! -f "$here/tools/node_modules/gltf-validator/package.json" ] || [ ! -f "$here/tools/node_modules/gltfpack/package.json" ]; then
-  echo "setup: installing gltf-validator and gltfpack (npm)" >&2
+# The Khronos glTF validator, used by the tests on every glTF we write; gltfpack, with which the tests
+# make quantized and meshopt-compressed copies of the external models for the loader; UPNG.js, with which
+# they play back the animated PNGs the flow test bed writes.
+if [ ! -f "$here/tools/node_modules/gltf-validator/package.json" ] || [ ! -f "$here/tools/node_modules/gltfpack/package.json" ] ||
+   [ ! -f "$here/tools/node_modules/upng-js/package.json" ]; then
+  echo "setup: installing gltf-validator, gltfpack and upng-js (npm)" >&2
   (cd "$here/tools" && npm install --no-audit --no-fund --silent >/dev/null)
 fi
 echo "setup: ok" >&2

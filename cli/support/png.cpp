@@ -1,3 +1,8 @@
+#include <array>
+#include <cassert>
+#include <cstdint>
+#include <cstring>
+#include <string>
 #include <vector>
 
 #define STB_IMAGE_WRITE_STATIC
@@ -6,6 +11,7 @@
 #include <stb/stb_image_write.h>
 
 #include "../io.h"
+#include "animated_png.h"
 
 namespace bb::cli {
 
@@ -18,6 +24,115 @@ Status write_png(const std::string& path, int width, int height, const unsigned 
   if (!stbi_write_png_to_func(sink, &bytes, width, height, 4, rgba, width * 4))
     return Error{path, "", "PNG encoding failed"};
   return write_atomic(path, std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
+}
+
+namespace {
+
+void put32(std::string& out, std::uint32_t v) {
+  for (int k = 3; k >= 0; --k) out.push_back(static_cast<char>((v >> (8 * k)) & 0xff));
+}
+
+void put16(std::string& out, std::uint16_t v) {
+  out.push_back(static_cast<char>(v >> 8));
+  out.push_back(static_cast<char>(v & 0xff));
+}
+
+std::uint32_t get32(const unsigned char* p) {
+  return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | p[3];
+}
+
+// length, type, data, CRC of type and data
+void chunk(std::string& out, const char type[4], const std::string& data) {
+  put32(out, static_cast<std::uint32_t>(data.size()));
+  const std::size_t start = out.size();
+  out.append(type, 4);
+  out += data;
+  put32(out, png_crc32(reinterpret_cast<const unsigned char*>(out.data() + start), out.size() - start));
+}
+
+}  // namespace
+
+std::uint32_t png_crc32(const unsigned char* data, std::size_t size, std::uint32_t crc) {
+  static const auto table = [] {
+    std::array<std::uint32_t, 256> t{};
+    for (std::uint32_t n = 0; n < 256; ++n) {
+      std::uint32_t c = n;
+      for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xedb88320u ^ (c >> 1) : c >> 1;
+      t[n] = c;
+    }
+    return t;
+  }();
+  crc = ~crc;
+  for (std::size_t i = 0; i < size; ++i) crc = table[(crc ^ data[i]) & 0xff] ^ (crc >> 8);
+  return ~crc;
+}
+
+AnimatedPng::AnimatedPng(int width, int height, std::uint16_t delay_num, std::uint16_t delay_den)
+    : width_(width), height_(height), delay_num_(delay_num), delay_den_(delay_den) {
+  assert(width > 0 && height > 0);
+}
+
+Status AnimatedPng::add_rgb(const unsigned char* rgb) {
+  // stb's PNG (filtered rows, deflated), of which the IDAT data is the frame's zlib stream.
+  std::string png;
+  auto sink = [](void* ctx, void* data, int size) { static_cast<std::string*>(ctx)->append(static_cast<char*>(data), size); };
+  if (!stbi_write_png_to_func(sink, &png, width_, height_, 3, rgb, width_ * 3))
+    return Error{"", "frame " + std::to_string(frames_.size()), "PNG encoding failed"};
+  std::string z;
+  const auto* p = reinterpret_cast<const unsigned char*>(png.data());
+  for (std::size_t at = 8; at + 12 <= png.size();) {
+    const std::uint32_t len = get32(p + at);
+    if (at + 12 + len > png.size()) break;
+    if (std::memcmp(p + at + 4, "IDAT", 4) == 0) z.append(png, at + 8, len);
+    at += 12 + len;
+  }
+  if (z.empty()) return Error{"", "frame " + std::to_string(frames_.size()), "PNG encoding gave no image data"};
+  frames_.push_back(std::move(z));
+  return Ok{};
+}
+
+Result<std::string> AnimatedPng::encode() const {
+  if (frames_.empty()) return Error{"", "", "an animated PNG needs at least one frame"};
+  std::string out("\x89PNG\r\n\x1a\n", 8);
+  std::string d;
+  put32(d, static_cast<std::uint32_t>(width_));
+  put32(d, static_cast<std::uint32_t>(height_));
+  d += std::string("\x08\x02\x00\x00\x00", 5);  // 8 bits, RGB, deflate, adaptive filters, no interlace
+  chunk(out, "IHDR", d);
+  d.clear();
+  put32(d, static_cast<std::uint32_t>(frames_.size()));
+  put32(d, 0);  // plays: forever
+  chunk(out, "acTL", d);
+  std::uint32_t sequence = 0;  // fcTL and fdAT chunks, numbered from 0 in file order
+  for (std::size_t f = 0; f < frames_.size(); ++f) {
+    d.clear();
+    put32(d, sequence++);
+    put32(d, static_cast<std::uint32_t>(width_));
+    put32(d, static_cast<std::uint32_t>(height_));
+    put32(d, 0);  // x offset
+    put32(d, 0);  // y offset
+    put16(d, delay_num_);
+    put16(d, delay_den_);
+    d.push_back(0);  // dispose: none
+    d.push_back(0);  // blend: source
+    chunk(out, "fcTL", d);
+    if (f == 0) {
+      chunk(out, "IDAT", frames_[0]);  // the default image is the first frame
+    } else {
+      d.clear();
+      put32(d, sequence++);
+      d += frames_[f];
+      chunk(out, "fdAT", d);
+    }
+  }
+  chunk(out, "IEND", {});
+  return out;
+}
+
+Status AnimatedPng::write(const std::string& path) const {
+  auto bytes = encode();
+  if (!bytes) return Error{path, "", bytes.error().reason};
+  return write_atomic(path, *bytes);
 }
 
 }  // namespace bb::cli

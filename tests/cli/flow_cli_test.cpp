@@ -4,7 +4,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <iterator>
+#include <set>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -429,6 +431,42 @@ TEST(FlowCli, ClipChosenByName) {
       << bad.text;
 }
 
+// --animation: every measured frame, impostors | geometry at half size, played back by UPNG.js
+// (tools/, npm); a later run without it leaves no animation of the earlier run behind.
+TEST(FlowCli, AnimationHoldsEveryMeasuredFrame) {
+  const std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/RiggedSimple.gltf";
+  if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
+  const fs::path d = fs::temp_directory_path() / "bb_flow_cli_animation";
+  fs::remove_all(d);
+  Out o = run("flow --model " + model + " --humans 4 --frames 6 --size 320x256 --animation -o " + d.string());
+  if (o.text.find("EGL") != std::string::npos && o.status != 0) GTEST_SKIP() << "no headless OpenGL: " << o.text;
+  ASSERT_EQ(o.status, 0) << o.text;
+  ASSERT_TRUE(fs::exists(d / "animation.png")) << o.text;
+  EXPECT_NE(o.text.find("wrote " + (d / "animation.png").string()), std::string::npos) << o.text;
+  if (fs::exists(std::string(BB_SOURCE_DIR) + "/tools/node_modules/upng-js/package.json")) {
+    Out play = bb::test::run_command("node " + std::string(BB_SOURCE_DIR) + "/tools/apng_frames.js " +
+                                     (d / "animation.png").string());
+    ASSERT_EQ(play.status, 0) << play.text;
+    auto j = nlohmann::json::parse(play.text);
+    EXPECT_EQ(j["width"], 320);   // two halves of 160
+    EXPECT_EQ(j["height"], 128);
+    ASSERT_EQ(j["frames"], 6);
+    std::set<std::uint32_t> distinct;
+    for (const auto& f : j["frame"]) {
+      EXPECT_EQ(f["rect"], nlohmann::json::array({0, 0, 320, 128}));
+      EXPECT_EQ(f["delay_ms"], 33);  // the scene's 30 frames per second
+      distinct.insert(f["fnv1a"].get<std::uint32_t>());
+    }
+    EXPECT_EQ(distinct.size(), 6u);  // the walkers move from frame to frame
+  } else {
+    std::cout << "upng-js not installed (run scripts/setup.sh): the animation's frames are not played back\n";
+  }
+  Out again = run("flow --model " + model + " --humans 4 --frames 2 --size 320x256 -o " + d.string());
+  ASSERT_EQ(again.status, 0) << again.text;
+  EXPECT_FALSE(fs::exists(d / "animation.png"));
+  EXPECT_TRUE(fs::exists(d / "flow.json"));
+}
+
 // --targets: the targets with the user's own settings, each from a run of its own, and
 // the table agrees with those runs.
 TEST(FlowCli, TargetsAreCheckedWithTheGivenSettings) {
@@ -536,7 +574,8 @@ TEST(DemoCli, WritesTheLodSetFramesChartsAndReport) {
   ASSERT_EQ(o.status, 0) << o.text;
   for (const char* f : {"default.glb", "default_body.png", "report.md", "demo.json", "sweep_posture.png",
                         "sweep_view.png", "scaling.png", "frame_0_impostors_vs_geometry.png", "view_whole_vs_parts.png",
-                        "view_whole_vs_parts_quality.png", "parts/sweep_view.png", "parts/flow.json"})
+                        "view_whole_vs_parts_quality.png", "parts/sweep_view.png", "parts/flow.json", "animation.png",
+                        "parts/animation.png"})
     EXPECT_TRUE(fs::exists(d / f)) << f;
   // The folder's flow.json and sample frames are the main run's (4 frames: 0 and 2), not those of
   // the sweeps (10 frames) or crowd sizes (2 frames) run after it into the same folder.
@@ -548,6 +587,9 @@ TEST(DemoCli, WritesTheLodSetFramesChartsAndReport) {
   EXPECT_TRUE(fs::exists(d / "frame_2_impostors_vs_geometry.png"));
   EXPECT_FALSE(fs::exists(d / "frame_1_impostors_vs_geometry.png"));
   EXPECT_FALSE(fs::exists(d / "frame_5_impostors_vs_geometry.png"));
+  // Only the main run and the part cards' write an animation.
+  EXPECT_FALSE(fs::exists(d / "parts_depth" / "animation.png"));
+  EXPECT_FALSE(fs::exists(d / "budget" / "animation.png"));
   std::ifstream in(d / "demo.json");
   auto j = nlohmann::json::parse(in);
   EXPECT_GT(j["main"]["geometry_ms"].get<double>(), 0);

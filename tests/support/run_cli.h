@@ -1,4 +1,5 @@
-// Tests: runs the bodybuilder executable as a user would, capturing stdout and stderr together.
+// Tests: runs the bodybuilder executable as a user would (or another command), capturing stdout and
+// stderr together.
 #pragma once
 
 #include <sys/wait.h>
@@ -14,8 +15,9 @@ struct CliRun {
   std::string text;  // stdout and stderr
 };
 
-inline CliRun run_cli(const std::string& args) {
-  std::string cmd = std::string(BB_BIN_DIR) + "/bodybuilder " + args + " 2>&1";
+// Runs a shell command line, stdout and stderr together.
+inline CliRun run_command(const std::string& command) {
+  std::string cmd = command + " 2>&1";
   CliRun r;
   FILE* p = popen(cmd.c_str(), "r");
   if (!p) return r;
@@ -26,5 +28,7 @@ inline CliRun run_cli(const std::string& args) {
   r.status = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
   return r;
 }
+
+inline CliRun run_cli(const std::string& args) { return run_command(std::string(BB_BIN_DIR) + "/bodybuilder " + args); }
 
 }  // namespace bb::test
