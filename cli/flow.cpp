@@ -128,7 +128,9 @@ std::vector<unsigned char> side_by_side(const FlowFrameImages& im, int w, int h)
 
 // The animation's frame: the paths drawn (impostors left, geometry right), each at half the
 // window's size (every 2x2 pixels averaged, premultiplied) over side_by_side's grey, RGB.
-std::vector<unsigned char> half_side_by_side_rgb(const FlowFrameImages& im, int w, int h, int* out_w, int* out_h) {
+// `what` names the impostor half and what im.refreshed counts ("impostors" or "part cards").
+std::vector<unsigned char> half_side_by_side_rgb(const FlowFrameImages& im, int w, int h, const std::string& what,
+                                                 int* out_w, int* out_h) {
   const int hw = w / 2, hh = h / 2;
   std::vector<const std::vector<unsigned char>*> halves;
   for (const auto* src : {&im.impostor, &im.geometry})
@@ -150,6 +152,33 @@ std::vector<unsigned char> half_side_by_side_rgb(const FlowFrameImages& im, int 
         for (int c = 0; c < 3; ++c)  // (sum / 4) + 235 (1 - sum[3] / (4 * 255)), rounded
           q[c] = static_cast<unsigned char>(std::min(255, (sum[c] * 255 + 235 * (4 * 255 - sum[3]) + 510) / 1020));
       }
+  }
+  // In the impostor half: an orange outline around what was refreshed in this frame, and a
+  // label over each half.
+  auto paint = [&](int x0, int y0, int x1, int y1, int half, const unsigned char rgb[3]) {  // [x0, x1) x [y0, y1)
+    x0 = std::max(x0, 0), y0 = std::max(y0, 0), x1 = std::min(x1, hw), y1 = std::min(y1, hh);
+    for (int y = y0; y < y1; ++y)
+      for (int x = x0; x < x1; ++x) std::copy(rgb, rgb + 3, &out[(static_cast<size_t>(y) * *out_w + half * hw + x) * 3]);
+  };
+  static const unsigned char orange[3] = {255, 127, 14}, ink[3] = {51, 51, 51};
+  const bool impostors = !im.impostor.empty();
+  if (impostors)
+    for (const glm::vec4& b : im.refreshed) {
+      const int x0 = static_cast<int>(std::floor(b.x / 2)) - 1, y0 = static_cast<int>(std::floor(b.y / 2)) - 1;
+      const int x1 = static_cast<int>(std::ceil(b.z / 2)) + 1, y1 = static_cast<int>(std::ceil(b.w / 2)) + 1;
+      if (x1 <= 0 || y1 <= 0 || x0 >= hw || y0 >= hh) continue;
+      paint(x0, y0, x1, y0 + 1, 0, orange);
+      paint(x0, y1 - 1, x1, y1, 0, orange);
+      paint(x0, y0, x0 + 1, y1, 0, orange);
+      paint(x1 - 1, y0, x1, y1, 0, orange);
+    }
+  for (std::size_t k = 0; k < halves.size(); ++k) {
+    const bool imp = impostors && k == 0;
+    const std::string label =
+        imp ? what + " (orange: " + std::to_string(im.refreshed.size()) + " refreshed in this frame)" : "geometry";
+    for (const auto& r : text_rects(label, 1.5f))
+      paint(8 + static_cast<int>(r[0]), 8 + static_cast<int>(r[1]), 8 + static_cast<int>(r[2]), 8 + static_cast<int>(r[3]),
+            static_cast<int>(k), ink);
   }
   return out;
 }
@@ -404,7 +433,8 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
       const std::size_t paths = (im.geometry.empty() ? 0 : 1) + (im.impostor.empty() ? 0 : 1);
       const std::size_t bytes = paths * static_cast<std::size_t>(s.width / 2) * static_cast<std::size_t>(s.height / 2) * 3;
       if (!animation_frames.empty() && (animation_frames.size() + 1) * bytes > kAnimationBytes) return;
-      animation_frames.push_back(half_side_by_side_rgb(im, s.width, s.height, &animation_w, &animation_h));
+      animation_frames.push_back(
+          half_side_by_side_rgb(im, s.width, s.height, s.part_cards ? "part cards" : "impostors", &animation_w, &animation_h));
     };
   ordered_json report;
   auto result = run_flow(model, s, device);
@@ -712,7 +742,7 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--snapshot-camera", a->snapshot_camera, "Snapshot camera: perspective (from the eye) or orthographic")
       ->capture_default_str();
   cmd->add_flag("--animation", a->animation,
-                "Also write animation.png: the measured frames as an animated PNG at the scene's 30 frames per second, impostors | geometry at half size (browsers play it; the first 256 MB of frames, 128 at 1280x1024)");
+                "Also write animation.png: the measured frames as an animated PNG at the scene's 30 frames per second, impostors | geometry at half size, the impostors refreshed in each frame outlined in orange (browsers play it; the first 256 MB of frames, 128 at 1280x1024)");
   cmd->add_flag("--hold-poses", a->hold_poses, "Every human keeps one pose while walking (isolates the pose lag)");
   cmd->add_option("--lods", a->lods,
                   "A model file with one level: up to N coarser levels made at load for both paths, each used where "

@@ -28,6 +28,10 @@ namespace bb::cli {
 struct FlowFrameImages {
   int frame = 0;
   std::vector<unsigned char> geometry, impostor;  // RGBA8, rows top to bottom
+  // Only for FlowSettings::on_frame: where the impostors (with part cards: the cards) refreshed in
+  // this impostor frame lie on screen, each the box of its snapshot's planned quad, pixels from
+  // the top left (x0, y0, x1, y1).
+  std::vector<glm::vec4> refreshed;
 };
 
 struct FlowSettings {

@@ -62,6 +62,34 @@ FlowResult::Spread spread(std::vector<double> t) {
   return s;
 }
 
+// Where the plans' snapshots lie on screen: each snapshot's planned quad (in its window, around Ta
+// along Ho and Uo) projected, as pixel boxes from the top left.
+std::vector<glm::vec4> refreshed_boxes(std::span<const runtime::FramePlan* const> plans, const runtime::SceneCamera& cam) {
+  std::vector<glm::vec4> out;
+  const glm::mat4 vp = cam.projection() * cam.view();
+  for (const runtime::FramePlan* plan : plans)
+    for (const auto& level : plan->snapshots)
+      for (const runtime::SnapshotGpu& sp : level) {
+        const glm::vec3 ta(sp.ta), ho(sp.ho_half), uo(sp.uo_dist);
+        const float half = sp.ho_half.w;
+        glm::vec4 box(1e30f, 1e30f, -1e30f, -1e30f);
+        bool seen = true;
+        for (int k = 0; k < 4; ++k) {
+          const float qx = (k & 1) ? sp.quad.z : sp.quad.x, qy = (k & 2) ? sp.quad.w : sp.quad.y;
+          const glm::vec4 c = vp * glm::vec4(ta + half * (qx * ho + qy * uo), 1.0f);
+          if (c.w <= 1e-6f) {
+            seen = false;
+            break;
+          }
+          const float x = (c.x / c.w * 0.5f + 0.5f) * static_cast<float>(cam.width);
+          const float y = (0.5f - c.y / c.w * 0.5f) * static_cast<float>(cam.height);
+          box = {std::min(box.x, x), std::min(box.y, y), std::max(box.z, x), std::max(box.w, y)};
+        }
+        if (seen) out.push_back(box);
+      }
+  return out;
+}
+
 }  // namespace
 
 Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, const std::string& device) {
@@ -362,6 +390,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
         atlas_pages = std::max(atlas_pages, st.atlas_pages_used);
       }
       if (compare || keep || stream) imgs.impostor = (*target_i)->read_rgba();
+      if (stream) imgs.refreshed = refreshed_boxes(plans, cam);
       if (compare) {  // after the timed frame: reads the fitted rectangles back
         for (int m = 0; m < nm; ++m) drawn_texels += renderers[m]->drawn_quad_texels(*plans[m]);
         ++drawn_frames;

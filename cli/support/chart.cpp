@@ -9,6 +9,19 @@
 
 namespace bb::cli {
 
+std::vector<std::array<float, 4>> text_rects(const std::string& s, float scale) {
+  static thread_local char buf[60000];
+  std::vector<char> str(s.begin(), s.end());
+  str.push_back(0);
+  const int quads = stb_easy_font_print(0, 0, str.data(), nullptr, buf, sizeof(buf));
+  std::vector<std::array<float, 4>> out;
+  for (int q = 0; q < quads; ++q) {
+    const float* v = reinterpret_cast<const float*>(buf + q * 4 * 16);  // 4 vertices of x, y, z, colour
+    out.push_back({v[0] * scale, v[1] * scale, v[8] * scale, v[9] * scale});
+  }
+  return out;
+}
+
 namespace {
 
 struct Canvas {
@@ -43,16 +56,8 @@ struct Canvas {
   }
   // Text with stb_easy_font, scaled; (x, y) is the top-left corner.
   void text(float x, float y, const std::string& s, unsigned rgb, float scale = 2.0f) {
-    static char buf[60000];
-    std::vector<char> str(s.begin(), s.end());
-    str.push_back(0);
-    int quads = stb_easy_font_print(0, 0, str.data(), nullptr, buf, sizeof(buf));
-    for (int q = 0; q < quads; ++q) {
-      float* v = reinterpret_cast<float*>(buf + q * 4 * 16);
-      float qx0 = v[0], qy0 = v[1], qx1 = v[4 * 2], qy1 = v[4 * 2 + 1];
-      rect(static_cast<int>(x + qx0 * scale), static_cast<int>(y + qy0 * scale), static_cast<int>(x + qx1 * scale),
-           static_cast<int>(y + qy1 * scale), rgb);
-    }
+    for (const auto& r : text_rects(s, scale))
+      rect(static_cast<int>(x + r[0]), static_cast<int>(y + r[1]), static_cast<int>(x + r[2]), static_cast<int>(y + r[3]), rgb);
   }
   static float text_width(const std::string& s, float scale = 2.0f) {
     std::vector<char> str(s.begin(), s.end());

@@ -2,6 +2,7 @@
 // dependency: axes, ticks, labels with stb_easy_font, lines, markers and a legend).
 #pragma once
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -20,6 +21,10 @@ struct Chart {
   double y_min = 0, y_max = 0;  // both 0: from the data (with 0 included on a linear axis)
   std::vector<double> hlines;   // horizontal reference lines (e.g. 1.0 = geometry)
 };
+
+// The rectangles (x0, y0, x1, y1: pixels from the text's top-left corner, ends excluded) that
+// spell `s` in stb_easy_font at `scale`, to write a label into any image.
+std::vector<std::array<float, 4>> text_rects(const std::string& s, float scale = 2.0f);
 
 // Renders the chart into width x height RGBA8 pixels (rows top to bottom).
 std::vector<unsigned char> render_chart(const Chart& chart, int width, int height);

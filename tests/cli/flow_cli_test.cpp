@@ -431,35 +431,63 @@ TEST(FlowCli, ClipChosenByName) {
       << bad.text;
 }
 
-// --animation: every measured frame, impostors | geometry at half size, played back by UPNG.js
-// (tools/, npm); a later run without it leaves no animation of the earlier run behind.
-TEST(FlowCli, AnimationHoldsEveryMeasuredFrame) {
+// --animation: every measured frame, impostors | geometry at half size, the impostors refreshed
+// in each frame outlined in orange, played back by UPNG.js (tools/, npm); a later run without it
+// leaves no animation of the earlier run behind.
+TEST(FlowCli, AnimationHoldsEveryMeasuredFrameAndOutlinesTheRefreshes) {
   const std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/RiggedSimple.gltf";
   if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
   const fs::path d = fs::temp_directory_path() / "bb_flow_cli_animation";
   fs::remove_all(d);
-  Out o = run("flow --model " + model + " --humans 4 --frames 6 --size 320x256 --animation -o " + d.string());
-  if (o.text.find("EGL") != std::string::npos && o.status != 0) GTEST_SKIP() << "no headless OpenGL: " << o.text;
-  ASSERT_EQ(o.status, 0) << o.text;
-  ASSERT_TRUE(fs::exists(d / "animation.png")) << o.text;
-  EXPECT_NE(o.text.find("wrote " + (d / "animation.png").string()), std::string::npos) << o.text;
-  if (fs::exists(std::string(BB_SOURCE_DIR) + "/tools/node_modules/upng-js/package.json")) {
-    Out play = bb::test::run_command("node " + std::string(BB_SOURCE_DIR) + "/tools/apng_frames.js " +
-                                     (d / "animation.png").string());
-    ASSERT_EQ(play.status, 0) << play.text;
-    auto j = nlohmann::json::parse(play.text);
-    EXPECT_EQ(j["width"], 320);   // two halves of 160
+  const std::string base = "flow --model " + model + " --humans 4 --size 320x256 --json -o " + d.string();
+  const bool upng = fs::exists(std::string(BB_SOURCE_DIR) + "/tools/node_modules/upng-js/package.json");
+  if (!upng) std::cout << "upng-js not installed (run scripts/setup.sh): the animations are not played back\n";
+  // Per frame: its hash, and its orange pixels in all and in the left (impostor) half.
+  struct Frame {
+    std::uint32_t hash = 0;
+    int orange = 0, orange_left = 0;
+  };
+  auto play = [&](std::vector<Frame>* frames) {
+    Out p = bb::test::run_command("node " + std::string(BB_SOURCE_DIR) + "/tools/apng_frames.js --count 255,127,14 " +
+                                  (d / "animation.png").string());
+    ASSERT_EQ(p.status, 0) << p.text;
+    auto j = nlohmann::json::parse(p.text);
+    EXPECT_EQ(j["width"], 320);  // two halves of 160
     EXPECT_EQ(j["height"], 128);
-    ASSERT_EQ(j["frames"], 6);
-    std::set<std::uint32_t> distinct;
+    EXPECT_EQ(j["plays"], 0);
     for (const auto& f : j["frame"]) {
       EXPECT_EQ(f["rect"], nlohmann::json::array({0, 0, 320, 128}));
       EXPECT_EQ(f["delay_ms"], 33);  // the scene's 30 frames per second
-      distinct.insert(f["fnv1a"].get<std::uint32_t>());
+      frames->push_back({f["fnv1a"].get<std::uint32_t>(), f["count"].get<int>(), f["count_left"].get<int>()});
+    }
+  };
+  // Every impostor refreshed in every frame: outlines in every frame, all in the impostor half.
+  Out o = run(base + " --frames 6 --posture 0 --view 0 --animation");
+  if (o.text.find("EGL") != std::string::npos && o.status != 0) GTEST_SKIP() << "no headless OpenGL: " << o.text;
+  ASSERT_EQ(o.status, 0) << o.text;
+  ASSERT_TRUE(fs::exists(d / "animation.png")) << o.text;
+  EXPECT_EQ(nlohmann::json::parse(last_json_line(o.text))["refresh_fraction"], 1.0);
+  if (upng) {
+    std::vector<Frame> frames;
+    play(&frames);
+    ASSERT_EQ(frames.size(), 6u);
+    std::set<std::uint32_t> distinct;
+    for (const Frame& f : frames) {
+      EXPECT_GT(f.orange_left, 40);  // four outlines of at least 10 pixels
+      EXPECT_EQ(f.orange, f.orange_left);
+      distinct.insert(f.hash);
     }
     EXPECT_EQ(distinct.size(), 6u);  // the walkers move from frame to frame
-  } else {
-    std::cout << "upng-js not installed (run scripts/setup.sh): the animation's frames are not played back\n";
+  }
+  // No cache test: the snapshots of the warm-up frames serve every measured frame, none outlined.
+  o = run(base + " --frames 4 --posture off --view off --animation");
+  ASSERT_EQ(o.status, 0) << o.text;
+  EXPECT_EQ(nlohmann::json::parse(last_json_line(o.text))["refresh_fraction"], 0.0);
+  if (upng) {
+    std::vector<Frame> frames;
+    play(&frames);
+    ASSERT_EQ(frames.size(), 4u);
+    for (const Frame& f : frames) EXPECT_EQ(f.orange, 0);
   }
   Out again = run("flow --model " + model + " --humans 4 --frames 2 --size 320x256 -o " + d.string());
   ASSERT_EQ(again.status, 0) << again.text;
