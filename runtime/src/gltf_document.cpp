@@ -226,6 +226,9 @@ std::filesystem::path external_file(const std::string& u, const std::string& w,
     }
   const std::string reads =
       "this loader reads data: URIs and files named relative to the folder of " + path;
+  // A Windows drive ("C:\x.png", "C:/x.png") is an absolute path, not a one-letter scheme.
+  if (k == 1 && u.size() > 2 && u[1] == ':' && (u[2] == '\\' || u[2] == '/'))
+    fail(w, "names the absolute path \"" + u + "\": " + reads);
   if (k > 0 && k < u.size() && u[k] == ':')
     fail(w, "names \"" + u + "\", a URI with the scheme " + u.substr(0, k + 1) +
                 ", which is not fetched: " + reads);

@@ -251,6 +251,8 @@ TEST(GltfDocument, DocumentErrorsNameTheirJsonPath) {
       // that is there); a URI with a scheme is not fetched.
       {"uri_absolute", [](json& j) { j["buffers"][0]["uri"] = (dir() / "t.bin").string(); },
        "$.buffers[0].uri", "names the absolute path \""},
+      {"uri_windows_drive", [](json& j) { j["buffers"][0]["uri"] = "C:\\assets\\t.bin"; },
+       "$.buffers[0].uri", "names the absolute path \"C:\\assets\\t.bin\""},
       {"uri_http", [](json& j) { j["buffers"][0]["uri"] = "http://example.com/t.bin"; },
        "$.buffers[0].uri", "a URI with the scheme http:, which is not fetched"},
       {"uri_file", [](json& j) { j["buffers"][0]["uri"] = "file:t.bin"; }, "$.buffers[0].uri",
