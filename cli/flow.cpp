@@ -441,10 +441,10 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   s.on_frame = nullptr;  // the sweeps and crowd sizes below copy these settings
   if (!result) return fail(result.error().message());
   if (!animation_frames.empty()) {
-    animation.emplace(animation_w, animation_h, std::uint16_t{1},
+    animation.emplace(animation_w, animation_h, 3, std::uint16_t{1},
                       static_cast<std::uint16_t>(std::lround(std::clamp(s.fps, 1.0f, 1000.0f))));
     for (const auto& f : animation_frames)
-      if (auto st = animation->add_rgb(f.data()); !st)
+      if (auto st = animation->add(f.data()); !st)
         return fail((fs::path(a.out) / "animation.png").string() + ": " + st.error().message());
     animation_frames = {};
   }

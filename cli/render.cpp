@@ -1,9 +1,12 @@
 // bodybuilder render FILE.glb -o OUT.png [--mode geometry|impostor] [--time S] [--azimuth DEG]
-//   [--elevation DEG] [--distance M] [--size WxH] [--clip NAME] [--snapshot perspective|ortho] [--json]
+//   [--elevation DEG] [--distance M] [--size WxH] [--clip NAME] [--snapshot perspective|ortho]
+//   [--frames N [--fps F] [--spin DEG_PER_S]] [--json]
 // One character, headless (EGL), RGBA PNG with a transparent background. In impostor mode the
 // snapshot is taken at the given time and view, into a window of the character's on-screen size,
-// and drawn as a camera-facing plane.
+// and drawn as a camera-facing plane. With --frames N > 1, an animated PNG of N such pictures, the
+// clip played on from --time at F frames per second and the camera turned by --spin.
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -14,6 +17,7 @@
 #include "bb/runtime/headless.h"
 #include "bb/runtime/model.h"
 #include "bb/runtime/portrait.h"
+#include "animated_png.h"
 #include "commands.h"
 #include "io.h"
 #include "model_notes.h"
@@ -27,6 +31,9 @@ struct RenderArgs {
   float time = 0.0f, azimuth = 0.0f, elevation = 10.0f, distance = 0.0f;
   int lod = -1;  // -1: chosen by screen size
   int lods = 3;  // LoadOptions::lod_levels
+  int frames = 1;          // > 1: an animated PNG
+  float fps = 30.0f;       // its frames per second of clip time
+  float spin = 0.0f;       // degrees of azimuth per second
   bool json = false;
 };
 
@@ -91,11 +98,36 @@ int run_render(const RenderArgs& a) {
     std::cerr << "bodybuilder render: " << img.error().message() << "\n";
     return 3;
   }
-  const double render_ms = ms(t0);
-  if (auto s = write_png(a.output, img->width, img->height, img->rgba.data()); !s) {
-    std::cerr << "bodybuilder render: " << s.error().message() << "\n";
-    return 1;
+  if (a.frames > 1) {
+    // Frame k: the clip at time + k / fps, the camera turned by spin * k / fps.
+    AnimatedPng apng(img->width, img->height, 4, 1, static_cast<std::uint16_t>(std::lround(a.fps)));
+    for (int k = 0; k < a.frames; ++k) {
+      if (k > 0) {
+        runtime::PortraitOptions ok = o;
+        ok.time = a.time + static_cast<float>(k) / a.fps;
+        ok.azimuth_deg = a.azimuth + a.spin * static_cast<float>(k) / a.fps;
+        img = runtime::render_portrait(*model, ok);
+        if (!img) {
+          std::cerr << "bodybuilder render: frame " << k << ": " << img.error().message() << "\n";
+          return 3;
+        }
+      }
+      if (auto st = apng.add(img->rgba.data()); !st) {
+        std::cerr << "bodybuilder render: " << a.output << ": " << st.error().message() << "\n";
+        return 1;
+      }
+    }
+    if (auto st = apng.write(a.output); !st) {
+      std::cerr << "bodybuilder render: " << st.error().message() << "\n";
+      return 1;
+    }
   }
+  const double render_ms = ms(t0) / a.frames;
+  if (a.frames == 1)
+    if (auto s = write_png(a.output, img->width, img->height, img->rgba.data()); !s) {
+      std::cerr << "bodybuilder render: " << s.error().message() << "\n";
+      return 1;
+    }
   long covered = 0;
   for (std::size_t i = 3; i < img->rgba.size(); i += 4) covered += img->rgba[i] > 0;
   if (a.json) {
@@ -103,11 +135,20 @@ int run_render(const RenderArgs& a) {
                         {"width", img->width},   {"height", img->height},       {"time_s", a.time},
                         {"clip", o.clip},        {"covered_pixels", covered},   {"window_px", img->window_pixels},
                         {"load_ms", load_ms},    {"context_ms", ctx_ms},        {"render_ms", render_ms},
-                        {"snapshot", a.snapshot}, {"gl", (*ctx)->description()}};
+                        {"snapshot", a.snapshot}, {"gl", (*ctx)->description()}, {"frames", a.frames}};
+    if (a.frames > 1) {
+      j["fps"] = a.fps;
+      j["spin_deg_per_s"] = a.spin;
+    }
     std::cout << j.dump() << "\n";
   } else {
-    std::printf("wrote %s (%dx%d, %s, %ld covered pixels; load %.1f ms, render %.1f ms on %s)\n", a.output.c_str(),
-                img->width, img->height, a.mode.c_str(), covered, load_ms, render_ms, (*ctx)->description().c_str());
+    if (a.frames > 1)
+      std::printf("wrote %s (%d frames at %g per second, %dx%d, %s; load %.1f ms, render %.1f ms a frame on %s)\n",
+                  a.output.c_str(), a.frames, static_cast<double>(a.fps), img->width, img->height, a.mode.c_str(), load_ms,
+                  render_ms, (*ctx)->description().c_str());
+    else
+      std::printf("wrote %s (%dx%d, %s, %ld covered pixels; load %.1f ms, render %.1f ms on %s)\n", a.output.c_str(),
+                  img->width, img->height, a.mode.c_str(), covered, load_ms, render_ms, (*ctx)->description().c_str());
   }
   return 0;
 }
@@ -138,7 +179,17 @@ void add_render_command(CLI::App& app, int* status) {
       ->check(CLI::Range(0, 8));
   cmd->add_option("--snapshot", a->snapshot, "Impostor snapshot projection: perspective (from the eye) or ortho (the paper's)")
       ->capture_default_str();
-  cmd->add_flag("--json", a->json, "Print one JSON object with the figures");
+  cmd->add_option("--frames", a->frames,
+                  "N > 1: an animated PNG of N frames (browsers play it), the clip played on from --time")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000));
+  cmd->add_option("--fps", a->fps, "With --frames: frames per second of clip time")
+      ->capture_default_str()
+      ->check(finite_number(1.0, 120.0));
+  cmd->add_option("--spin", a->spin, "With --frames: the camera turns around the character, degrees per second")
+      ->capture_default_str()
+      ->check(finite_number());
+  cmd->add_flag("--json", a->json, "Print one JSON object with the figures (covered_pixels: the last frame's)");
   cmd->callback([=] { *status = run_render(*a); });
 }
 

@@ -1,6 +1,7 @@
 #!/usr/bin/env node
-// Decodes an (animated) PNG with UPNG.js and prints, as JSON, its size, frame count, plays, and
-// each frame's rectangle, delay (ms), dispose and blend, and a hash of its RGBA8 pixels as shown
+// Decodes an (animated) PNG with UPNG.js and prints, as JSON, its size, frame count (1 for a still
+// PNG), plays, and each frame's rectangle, delay (ms), dispose and blend (animated only), and a hash
+// of its RGBA8 pixels as shown
 // (FNV-1a, 32 bits, over the composited frame); with --count R,G,B, also how many of each frame's
 // pixels have exactly that colour, in all and in its left half. Exit status: 0 decoded, 2 could not
 // read it.
@@ -59,12 +60,15 @@ console.log(JSON.stringify({
   height: img.height,
   depth: img.depth,
   ctype: img.ctype,
-  frames: img.frames.length,
+  animated: img.frames.length > 0,
+  frames: rgba.length,  // a still PNG: one
   plays: img.tabs && img.tabs.acTL ? img.tabs.acTL.num_plays : null,
-  frame: img.frames.map((f, i) => ({
-    rect: [f.rect.x, f.rect.y, f.rect.width, f.rect.height],
-    delay_ms: f.delay, dispose: f.dispose, blend: f.blend,
-    fnv1a: fnv1a(rgba[i]),
-    ...(count ? counted(rgba[i]) : {}),
-  })),
+  frame: rgba.map((buf, i) => {
+    const f = img.frames[i];
+    return {
+      ...(f ? { rect: [f.rect.x, f.rect.y, f.rect.width, f.rect.height], delay_ms: f.delay, dispose: f.dispose, blend: f.blend } : {}),
+      fnv1a: fnv1a(buf),
+      ...(count ? counted(buf) : {}),
+    };
+  }),
 }));

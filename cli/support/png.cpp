@@ -67,16 +67,16 @@ std::uint32_t png_crc32(const unsigned char* data, std::size_t size, std::uint32
   return ~crc;
 }
 
-AnimatedPng::AnimatedPng(int width, int height, std::uint16_t delay_num, std::uint16_t delay_den)
-    : width_(width), height_(height), delay_num_(delay_num), delay_den_(delay_den) {
-  assert(width > 0 && height > 0);
+AnimatedPng::AnimatedPng(int width, int height, int channels, std::uint16_t delay_num, std::uint16_t delay_den)
+    : width_(width), height_(height), channels_(channels), delay_num_(delay_num), delay_den_(delay_den) {
+  assert(width > 0 && height > 0 && (channels == 3 || channels == 4));
 }
 
-Status AnimatedPng::add_rgb(const unsigned char* rgb) {
+Status AnimatedPng::add(const unsigned char* pixels) {
   // stb's PNG (filtered rows, deflated), of which the IDAT data is the frame's zlib stream.
   std::string png;
   auto sink = [](void* ctx, void* data, int size) { static_cast<std::string*>(ctx)->append(static_cast<char*>(data), size); };
-  if (!stbi_write_png_to_func(sink, &png, width_, height_, 3, rgb, width_ * 3))
+  if (!stbi_write_png_to_func(sink, &png, width_, height_, channels_, pixels, width_ * channels_))
     return Error{"", "frame " + std::to_string(frames_.size()), "PNG encoding failed"};
   std::string z;
   const auto* p = reinterpret_cast<const unsigned char*>(png.data());
@@ -97,7 +97,9 @@ Result<std::string> AnimatedPng::encode() const {
   std::string d;
   put32(d, static_cast<std::uint32_t>(width_));
   put32(d, static_cast<std::uint32_t>(height_));
-  d += std::string("\x08\x02\x00\x00\x00", 5);  // 8 bits, RGB, deflate, adaptive filters, no interlace
+  d.push_back(8);                                  // bits per channel
+  d.push_back(channels_ == 4 ? 6 : 2);             // RGBA or RGB
+  d += std::string("\x00\x00\x00", 3);           // deflate, adaptive filters, no interlace
   chunk(out, "IHDR", d);
   d.clear();
   put32(d, static_cast<std::uint32_t>(frames_.size()));

@@ -96,8 +96,8 @@ TEST(AnimatedPng, FramesReadBackExactlyInOrder) {
     seed = seed * 1664525u + 1013904223u;
     frames[2][i] = static_cast<unsigned char>(seed >> 24);
   }
-  bb::cli::AnimatedPng apng(w, h, 1, 30);
-  for (const auto& f : frames) ASSERT_TRUE(apng.add_rgb(f.data()));
+  bb::cli::AnimatedPng apng(w, h, 3, 1, 30);
+  for (const auto& f : frames) ASSERT_TRUE(apng.add(f.data()));
   EXPECT_EQ(apng.frames(), 3);
   auto file = apng.encode();
   ASSERT_TRUE(file) << file.error().message();
@@ -139,7 +139,7 @@ TEST(AnimatedPng, FramesReadBackExactlyInOrder) {
 }
 
 TEST(AnimatedPng, NoFramesIsAnErrorAndNothingIsWritten) {
-  bb::cli::AnimatedPng apng(4, 4, 1, 10);
+  bb::cli::AnimatedPng apng(4, 4, 3, 1, 10);
   const std::filesystem::path p = std::filesystem::temp_directory_path() / "bb_apng_empty.png";
   std::filesystem::remove(p);
   auto st = apng.write(p.string());
@@ -150,46 +150,50 @@ TEST(AnimatedPng, NoFramesIsAnErrorAndNothingIsWritten) {
 }
 
 // UPNG.js (tools/, npm), a decoder of its own, plays the file back: every frame whole, at its
-// delay, with the pixels given.
+// delay, with the pixels given, RGB and RGBA (straight alpha, as PNG holds it).
 TEST(AnimatedPng, UpngDecodesEveryFrame) {
   const std::string tool = std::string(BB_SOURCE_DIR) + "/tools/apng_frames.js";
   if (!std::filesystem::exists(std::string(BB_SOURCE_DIR) + "/tools/node_modules/upng-js/package.json"))
     GTEST_SKIP() << "upng-js not installed (run scripts/setup.sh)";
   const int w = 64, h = 32;
-  bb::cli::AnimatedPng apng(w, h, 1, 25);
-  std::vector<std::uint32_t> hashes;
-  std::vector<unsigned char> rgb(w * h * 3);
-  for (int f = 0; f < 4; ++f) {
-    for (int i = 0; i < w * h; ++i) {
-      const int x = i % w, y = i / w;
-      rgb[3 * i] = static_cast<unsigned char>(x * 4 + f * 16);
-      rgb[3 * i + 1] = static_cast<unsigned char>(y * 8);
-      rgb[3 * i + 2] = static_cast<unsigned char>((x + y + f) % 2 ? 200 : 40);
-    }
-    ASSERT_TRUE(apng.add_rgb(rgb.data()));
-    std::uint32_t hash = 0x811c9dc5u;  // FNV-1a over RGBA8, as the tool hashes what it decoded
-    for (int i = 0; i < w * h; ++i)
-      for (int k = 0; k < 4; ++k) {
-        hash ^= k < 3 ? rgb[3 * i + k] : 255u;
-        hash *= 0x01000193u;
+  for (const int channels : {3, 4}) {
+    SCOPED_TRACE(channels);
+    bb::cli::AnimatedPng apng(w, h, channels, 1, 25);
+    std::vector<std::uint32_t> hashes;
+    std::vector<unsigned char> px(w * h * channels);
+    for (int f = 0; f < 4; ++f) {
+      for (int i = 0; i < w * h; ++i) {
+        const int x = i % w, y = i / w;
+        unsigned char* p = &px[channels * i];
+        p[0] = static_cast<unsigned char>(x * 4 + f * 16);
+        p[1] = static_cast<unsigned char>(y * 8);
+        p[2] = static_cast<unsigned char>((x + y + f) % 2 ? 200 : 40);
+        if (channels == 4) p[3] = static_cast<unsigned char>((x * 3 + y * 5 + f * 60) % 256);
       }
-    hashes.push_back(hash);
-  }
-  const std::filesystem::path p = std::filesystem::temp_directory_path() / "bb_apng_upng.png";
-  ASSERT_TRUE(apng.write(p.string()));
-  const bb::test::CliRun play = bb::test::run_command("node " + tool + " " + p.string());
-  ASSERT_EQ(play.status, 0) << play.text;
-  const std::string& text = play.text;
-  const auto j = nlohmann::json::parse(text);
-  EXPECT_EQ(j["width"], w);
-  EXPECT_EQ(j["height"], h);
-  EXPECT_EQ(j["ctype"], 2);  // RGB
-  EXPECT_EQ(j["plays"], 0);  // forever
-  ASSERT_EQ(j["frames"], 4);
-  for (int f = 0; f < 4; ++f) {
-    const auto& fr = j["frame"][f];
-    EXPECT_EQ(fr["rect"], nlohmann::json::array({0, 0, w, h}));
-    EXPECT_EQ(fr["delay_ms"], 40);
-    EXPECT_EQ(fr["fnv1a"].get<std::uint32_t>(), hashes[f]) << "frame " << f;
+      ASSERT_TRUE(apng.add(px.data()));
+      std::uint32_t hash = 0x811c9dc5u;  // FNV-1a over RGBA8, as the tool hashes what it decoded
+      for (int i = 0; i < w * h; ++i)
+        for (int k = 0; k < 4; ++k) {
+          hash ^= k < channels ? px[channels * i + k] : 255u;
+          hash *= 0x01000193u;
+        }
+      hashes.push_back(hash);
+    }
+    const std::filesystem::path p = std::filesystem::temp_directory_path() / "bb_apng_upng.png";
+    ASSERT_TRUE(apng.write(p.string()));
+    const bb::test::CliRun play = bb::test::run_command("node " + tool + " " + p.string());
+    ASSERT_EQ(play.status, 0) << play.text;
+    const auto j = nlohmann::json::parse(play.text);
+    EXPECT_EQ(j["width"], w);
+    EXPECT_EQ(j["height"], h);
+    EXPECT_EQ(j["ctype"], channels == 4 ? 6 : 2);  // RGBA or RGB
+    EXPECT_EQ(j["plays"], 0);                      // forever
+    ASSERT_EQ(j["frames"], 4);
+    for (int f = 0; f < 4; ++f) {
+      const auto& fr = j["frame"][f];
+      EXPECT_EQ(fr["rect"], nlohmann::json::array({0, 0, w, h}));
+      EXPECT_EQ(fr["delay_ms"], 40);
+      EXPECT_EQ(fr["fnv1a"].get<std::uint32_t>(), hashes[f]) << "frame " << f;
+    }
   }
 }
