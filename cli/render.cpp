@@ -100,7 +100,7 @@ int run_render(const RenderArgs& a) {
   }
   if (a.frames > 1) {
     // Frame k: the clip at time + k / fps, the camera turned by spin * k / fps.
-    AnimatedPng apng(img->width, img->height, 4, 1, static_cast<std::uint16_t>(std::lround(a.fps)));
+    AnimatedPng apng(img->width, img->height, 4, 100, static_cast<std::uint16_t>(std::lround(100.0 * a.fps)));
     for (int k = 0; k < a.frames; ++k) {
       if (k > 0) {
         runtime::PortraitOptions ok = o;
