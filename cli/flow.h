@@ -89,9 +89,10 @@ struct FlowSettings {
   // glTF's unit), else measured (BakedClip::ground_speed), else none (played at its own rate).
   float clip_speed_mps = 0;
   std::vector<int> keep_frames;  // measured frame indices whose images are returned
-  // Called with both paths' pictures of every measured frame, in order, each read back after the
-  // frame's timing (`bodybuilder flow --animation`); empty: none.
+  // Called with both paths' pictures of the first `on_frame_count` measured frames, in order, each
+  // read back after the frame's timing (`bodybuilder flow --animation`); empty: none.
   std::function<void(const FlowFrameImages&)> on_frame;
+  int on_frame_count = 0;
 };
 
 struct FlowResult {

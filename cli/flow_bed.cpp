@@ -281,7 +281,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
     int mf = f - s.warmup;
     bool compare = measured && s.geometry && s.impostor && s.quality_every > 0 && mf % s.quality_every == 0;
     bool keep = measured && std::find(s.keep_frames.begin(), s.keep_frames.end(), mf) != s.keep_frames.end();
-    const bool stream = measured && static_cast<bool>(s.on_frame);
+    const bool stream = measured && mf < s.on_frame_count && static_cast<bool>(s.on_frame);
     FlowFrameImages imgs;
     imgs.frame = mf;
     // One path: plan and draw every model's crowd into its target, timed until the GPU has

@@ -64,8 +64,8 @@ std::optional<std::size_t> too_deep(std::string_view text) {
 }
 
 // nlohmann's DOM builder, keeping the offset where parsing stopped: a number beyond a double's
-// range
-// ("1e400") is an out_of_range exception, which does not carry the offset that syntax errors do.
+// range ("1e400") is an out_of_range exception, which does not carry the offset that syntax
+// errors do.
 struct DomBuilder : nlohmann::detail::json_sax_dom_parser<json> {
   std::size_t stop = 0;
   explicit DomBuilder(json& j) : json_sax_dom_parser<json>(j, true) {}

@@ -10,21 +10,19 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "run_cli.h"
+
 namespace {
 
 namespace fs = std::filesystem;
 
 bool have_cli() { return fs::exists(std::string(BB_BIN_DIR) + "/bodybuilder"); }
 
+// tests/support/run_cli.h, with the output appended to *out and the exit status returned.
 int run_command(const std::string& command, std::string* out) {
-  std::string cmd = command + " 2>&1";
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return -1;
-  char buf[4096];
-  std::size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) out->append(buf, n);
-  int rc = pclose(p);
-  return WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
+  const bb::test::CliRun r = bb::test::run_command(command);
+  *out += r.text;
+  return r.status;
 }
 
 int run(const std::string& args, std::string* out) { return run_command(std::string(BB_BIN_DIR) + "/bodybuilder " + args, out); }
