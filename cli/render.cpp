@@ -93,7 +93,9 @@ int run_render(const RenderArgs& a) {
   }
   const double ctx_ms = ms(t0);
   t0 = clock::now();
-  auto img = runtime::render_portrait(*model, o);
+  // One renderer for every frame of an animation (its programs and target made once).
+  runtime::PortraitRenderer portraits(*model);
+  auto img = portraits.render(o);
   if (!img) {
     std::cerr << "bodybuilder render: " << img.error().message() << "\n";
     return 3;
@@ -106,7 +108,7 @@ int run_render(const RenderArgs& a) {
         runtime::PortraitOptions ok = o;
         ok.time = a.time + static_cast<float>(k) / a.fps;
         ok.azimuth_deg = a.azimuth + a.spin * static_cast<float>(k) / a.fps;
-        img = runtime::render_portrait(*model, ok);
+        img = portraits.render(ok);
         if (!img) {
           std::cerr << "bodybuilder render: frame " << k << ": " << img.error().message() << "\n";
           return 3;

@@ -22,8 +22,10 @@ SceneCamera portrait_camera(const Model& model, const PortraitOptions& o) {
   return cam;
 }
 
-Result<Image> render_portrait(const Model& model, const PortraitOptions& o) {
-  const SceneCamera cam = portrait_camera(model, o);
+namespace {
+
+// The impostor configuration of a portrait: one window of the character's on-screen size.
+ImpostorConfig portrait_config(const Model& model, const PortraitOptions& o, const SceneCamera& cam, int* window_out) {
   ImpostorConfig cfg;
   // One texel per pixel: the window is the character's on-screen size (even, so that with Ta at
   // the centre of an even-sized image the texels fall on the pixels).
@@ -41,25 +43,63 @@ Result<Image> render_portrait(const Model& model, const PortraitOptions& o) {
   cfg.windows.size[0] = window;
   cfg.page_size = window;
   cfg.max_pages = 1;
-  Crowd crowd(model);
+  *window_out = window;
+  return cfg;
+}
+
+}  // namespace
+
+struct PortraitRenderer::State {
+  int width = 0, height = 0, window = 0;
+  bool orthographic = false;
+  ImpostorConfig cfg;
+  std::unique_ptr<Renderer> renderer;
+  std::unique_ptr<OffscreenTarget> target;
+};
+
+PortraitRenderer::PortraitRenderer(const Model& model) : model_(model) {}
+PortraitRenderer::~PortraitRenderer() = default;
+
+Result<Image> PortraitRenderer::render(const PortraitOptions& o) {
+  const SceneCamera cam = portrait_camera(model_, o);
+  int window = 0;
+  ImpostorConfig cfg = portrait_config(model_, o, cam, &window);
+  if (!state_ || state_->width != o.width || state_->height != o.height || state_->window != window ||
+      state_->orthographic != o.orthographic) {
+    state_.reset();
+    auto s = std::make_unique<State>();
+    s->width = o.width;
+    s->height = o.height;
+    s->window = window;
+    s->orthographic = o.orthographic;
+    s->cfg = cfg;
+    auto renderer = Renderer::create(model_, cfg);
+    if (!renderer) return renderer.error();
+    s->renderer = std::move(*renderer);
+    auto target = OffscreenTarget::create(o.width, o.height);
+    if (!target) return target.error();
+    s->target = std::move(*target);
+    state_ = std::move(s);
+    ++setups_;
+  }
+  Crowd crowd(model_);
   crowd.add(Character{glm::vec3(0.0f), 0.0f, 1.0f, o.clip, 0.0f, 1.0f});
-  FramePlanner planner(model, cfg);
+  // A planner of its own per picture: its cache starts empty, so an impostor is always snapshot now.
+  FramePlanner planner(model_, state_->cfg);
   const FramePlan& plan = planner.plan(crowd, cam, o.time, o.mode == RenderMode::kGeometry ? RenderMode::kGeometry : RenderMode::kImpostor);
-  auto renderer = Renderer::create(model, cfg);
-  if (!renderer) return renderer.error();
-  auto target = OffscreenTarget::create(o.width, o.height);
-  if (!target) return target.error();
-  (*target)->bind(true);
+  state_->target->bind(true);
   DrawOptions draw;
   draw.edges = ImpostorEdges::kCentre;  // texels on pixels: the impostor is the snapshot, exactly
-  (*renderer)->draw(plan, draw);
+  state_->renderer->draw(plan, draw);
   Image img;
   img.width = o.width;
   img.height = o.height;
-  img.rgba = (*target)->read_rgba();
+  img.rgba = state_->target->read_rgba();
   img.stats = plan.stats;
   img.window_pixels = window;
   return img;
 }
+
+Result<Image> render_portrait(const Model& model, const PortraitOptions& o) { return PortraitRenderer(model).render(o); }
 
 }  // namespace bb::runtime

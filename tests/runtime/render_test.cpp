@@ -129,6 +129,45 @@ INSTANTIATE_TEST_SUITE_P(SharedModels, PortraitPsnr,
                          ::testing::Values("CesiumMan.glb", "Fox.glb", "RiggedSimple.gltf", "SimpleSkin.gltf"),
                          [](const auto& param_info) { return fs::path(param_info.param).stem().string(); });
 
+// One PortraitRenderer for many pictures (render --frames): each is render_portrait's picture for
+// the same options, to the byte, and the renderer is made again only when the size changes.
+TEST(PortraitRenderer, ManyPicturesFromOneRendererAreRenderPortraitsOwn) {
+  REQUIRE_GL();
+  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
+  auto m = load_model(path);
+  ASSERT_TRUE(m.ok()) << m.error().message();
+  PortraitRenderer portraits(*m);
+  int pictures = 0;
+  auto check = [&](const PortraitOptions& o) {
+    auto a = portraits.render(o);
+    ASSERT_TRUE(a.ok()) << a.error().message();
+    auto b = render_portrait(*m, o);
+    ASSERT_TRUE(b.ok()) << b.error().message();
+    ASSERT_EQ(a->rgba.size(), b->rgba.size());
+    EXPECT_TRUE(a->rgba == b->rgba) << "picture " << pictures;
+    EXPECT_EQ(a->window_pixels, b->window_pixels);
+    EXPECT_EQ(a->stats.snapshots, b->stats.snapshots);
+    int covered = 0;
+    for (std::size_t i = 3; i < a->rgba.size(); i += 4) covered += a->rgba[i] > 0;
+    EXPECT_GT(covered, 400) << "picture " << pictures << ": the character should cover part of it";
+    ++pictures;
+  };
+  PortraitOptions o;
+  o.width = o.height = 128;
+  for (RenderMode mode : {RenderMode::kImpostor, RenderMode::kGeometry})
+    for (int k = 0; k < 4; ++k) {
+      o.mode = mode;
+      o.time = 0.1f * static_cast<float>(k);  // the clip plays on
+      o.azimuth_deg = 25.0f * static_cast<float>(k);
+      check(o);
+    }
+  EXPECT_EQ(portraits.setups(), 1);
+  o.width = 96;  // another size: made again
+  check(o);
+  EXPECT_EQ(portraits.setups(), 2);
+}
+
 // The shared models packed by gltfpack (tools/node_modules, npm) as game pipelines ship them:
 // KHR_mesh_quantization (integer positions scaled back by the inverse bind matrices, 8-bit normals,
 // 12-bit texture coordinates scaled by KHR_texture_transform), EXT_meshopt_compression (-c), with

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "bb/result.h"
@@ -35,6 +36,32 @@ SceneCamera portrait_camera(const Model& model, const PortraitOptions& options);
 
 // Renders the model once, as geometry or as an impostor whose snapshot is taken at the same time
 // and view with a window of the character's on-screen size (one texel per pixel at Ta's depth).
+// Makes its renderer and target for this one picture: for many, use a PortraitRenderer.
 Result<Image> render_portrait(const Model& model, const PortraitOptions& options);
+
+// Renders one model again and again (an animation, a spinning view, portraits for a UI): the
+// renderer (its shader programs, atlas) and the target are made on the first call and kept while
+// the picture's size, the snapshot window's size and the projection stay the same; otherwise they
+// are made again. Every picture is what render_portrait gives for the same options (an impostor
+// is always a fresh snapshot: no cache test carries an older one). The model must outlive it;
+// needs the context it was first called in to be current.
+class PortraitRenderer {
+ public:
+  explicit PortraitRenderer(const Model& model);
+  ~PortraitRenderer();
+  PortraitRenderer(const PortraitRenderer&) = delete;
+  PortraitRenderer& operator=(const PortraitRenderer&) = delete;
+
+  Result<Image> render(const PortraitOptions& options);
+
+  // How many times the renderer and target were made (1 for a run of pictures of one size).
+  int setups() const { return setups_; }
+
+ private:
+  struct State;
+  const Model& model_;
+  std::unique_ptr<State> state_;
+  int setups_ = 0;
+};
 
 }  // namespace bb::runtime
