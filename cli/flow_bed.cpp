@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cctype>
@@ -64,29 +65,57 @@ FlowResult::Spread spread(std::vector<double> t) {
 
 // Where the plans' snapshots lie on screen: each snapshot's planned quad (in its window, around Ta
 // along Ho and Uo) projected, as pixel boxes from the top left.
-std::vector<glm::vec4> refreshed_boxes(std::span<const runtime::FramePlan* const> plans, const runtime::SceneCamera& cam) {
+// The screen box (pixels, top-left origin) of world points; false where one lies behind the eye.
+bool screen_box(std::span<const glm::vec3> points, const glm::mat4& vp, const runtime::SceneCamera& cam, glm::vec4* box) {
+  *box = glm::vec4(1e30f, 1e30f, -1e30f, -1e30f);
+  for (const glm::vec3& p : points) {
+    const glm::vec4 c = vp * glm::vec4(p, 1.0f);
+    if (c.w <= 1e-6f) return false;
+    const float x = (c.x / c.w * 0.5f + 0.5f) * static_cast<float>(cam.width);
+    const float y = (0.5f - c.y / c.w * 0.5f) * static_cast<float>(cam.height);
+    *box = {std::min(box->x, x), std::min(box->y, y), std::max(box->z, x), std::max(box->w, y)};
+  }
+  return true;
+}
+
+// What the impostor path refreshed in a frame, as screen boxes: each snapshot's planned quad, and
+// each character drawn as geometry in place of a snapshot that would have been drawn once
+// (ImpostorConfig::short_lived_as_geometry): the box of its model's poses where it stands.
+// plans[m] is models[m]'s.
+std::vector<glm::vec4> refreshed_boxes(std::span<const runtime::FramePlan* const> plans,
+                                       std::span<const runtime::Model* const> models, const runtime::SceneCamera& cam) {
   std::vector<glm::vec4> out;
   const glm::mat4 vp = cam.projection() * cam.view();
-  for (const runtime::FramePlan* plan : plans)
-    for (const auto& level : plan->snapshots)
+  glm::vec4 box;
+  for (std::size_t m = 0; m < plans.size(); ++m) {
+    const runtime::FramePlan& plan = *plans[m];
+    for (const auto& level : plan.snapshots)
       for (const runtime::SnapshotGpu& sp : level) {
         const glm::vec3 ta(sp.ta), ho(sp.ho_half), uo(sp.uo_dist);
         const float half = sp.ho_half.w;
-        glm::vec4 box(1e30f, 1e30f, -1e30f, -1e30f);
-        bool seen = true;
+        std::array<glm::vec3, 4> corners;
         for (int k = 0; k < 4; ++k) {
           const float qx = (k & 1) ? sp.quad.z : sp.quad.x, qy = (k & 2) ? sp.quad.w : sp.quad.y;
-          const glm::vec4 c = vp * glm::vec4(ta + half * (qx * ho + qy * uo), 1.0f);
-          if (c.w <= 1e-6f) {
-            seen = false;
-            break;
-          }
-          const float x = (c.x / c.w * 0.5f + 0.5f) * static_cast<float>(cam.width);
-          const float y = (0.5f - c.y / c.w * 0.5f) * static_cast<float>(cam.height);
-          box = {std::min(box.x, x), std::min(box.y, y), std::max(box.z, x), std::max(box.w, y)};
+          corners[k] = ta + half * (qx * ho + qy * uo);
         }
-        if (seen) out.push_back(box);
+        if (screen_box(corners, vp, cam, &box)) out.push_back(box);
       }
+    // Only where every character the plan draws as geometry is one of these (a planner may also
+    // draw a character as geometry for other reasons, which are no refresh).
+    if (plan.stats.short_lived_geometry == 0 || plan.stats.geometry != plan.stats.short_lived_geometry) continue;
+    const glm::vec3 lo = models[m]->bounds_min, hi = models[m]->bounds_max;
+    for (const auto& level : plan.geometry)
+      for (const runtime::InstanceGpu& in : level) {
+        // The geometry shader's placement: scaled, turned by the yaw about +Y, moved.
+        const float c = std::cos(in.position_yaw.w), sn = std::sin(in.position_yaw.w), sc = in.anim.x;
+        std::array<glm::vec3, 8> corners;
+        for (int k = 0; k < 8; ++k) {
+          const glm::vec3 p = sc * glm::vec3((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
+          corners[k] = glm::vec3(in.position_yaw) + glm::vec3(c * p.x + sn * p.z, p.y, -sn * p.x + c * p.z);
+        }
+        if (screen_box(corners, vp, cam, &box)) out.push_back(box);
+      }
+  }
   return out;
 }
 
@@ -390,7 +419,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
         atlas_pages = std::max(atlas_pages, st.atlas_pages_used);
       }
       if (compare || keep || stream) imgs.impostor = (*target_i)->read_rgba();
-      if (stream) imgs.refreshed = refreshed_boxes(plans, cam);
+      if (stream) imgs.refreshed = refreshed_boxes(plans, models, cam);
       if (compare) {  // after the timed frame: reads the fitted rectangles back
         for (int m = 0; m < nm; ++m) drawn_texels += renderers[m]->drawn_quad_texels(*plans[m]);
         ++drawn_frames;

@@ -479,6 +479,22 @@ TEST(FlowCli, AnimationHoldsEveryMeasuredFrameAndOutlinesTheRefreshes) {
     }
     EXPECT_EQ(distinct.size(), 6u);  // the walkers move from frame to frame
   }
+  // Single-sampled, every character whose test fires again a frame after its snapshot is drawn as
+  // geometry instead (--short-lived auto): those count as refreshed, and are outlined too.
+  o = run(base + " --frames 4 --posture 0 --view 0 --msaa 1 --animation");
+  ASSERT_EQ(o.status, 0) << o.text;
+  auto single = nlohmann::json::parse(last_json_line(o.text));
+  EXPECT_EQ(single["short_lived_geometry"], 1.0);
+  EXPECT_EQ(single["refresh_fraction"], 1.0);
+  if (upng) {
+    std::vector<Frame> frames;
+    play(&frames);
+    ASSERT_EQ(frames.size(), 4u);
+    for (const Frame& f : frames) {
+      EXPECT_GT(f.orange_left, 40);
+      EXPECT_EQ(f.orange, f.orange_left);
+    }
+  }
   // No cache test: the snapshots of the warm-up frames serve every measured frame, none outlined.
   o = run(base + " --frames 4 --posture off --view off --animation");
   ASSERT_EQ(o.status, 0) << o.text;
