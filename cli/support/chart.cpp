@@ -109,6 +109,7 @@ std::vector<unsigned char> render_chart(const Chart& c, int width, int height) {
       y_lo = std::min(y_lo, s.y[i]); y_hi = std::max(y_hi, s.y[i]);
     }
   for (double h : c.hlines) { y_lo = std::min(y_lo, h); y_hi = std::max(y_hi, h); }
+  for (double v : c.vlines) { x_lo = std::min(x_lo, v); x_hi = std::max(x_hi, v); }
   if (x_lo > x_hi) { x_lo = 0; x_hi = 1; y_lo = 0; y_hi = 1; }
   if (c.y_min != 0 || c.y_max != 0) { y_lo = c.y_min; y_hi = c.y_max; }
   else if (!c.log_y) { y_lo = std::min(0.0, y_lo); y_hi = y_hi + 0.08 * (y_hi - y_lo); }
@@ -122,6 +123,9 @@ std::vector<unsigned char> render_chart(const Chart& c, int width, int height) {
   auto sy = [&](double v) { return static_cast<float>(top + ph - (ty(v) - Y0) / (Y1 - Y0) * ph); };
 
   cv.text((width - Canvas::text_width(c.title, 2.5f)) / 2, 14, c.title, 0x222222, 2.5f);
+  if (!c.corner_label.empty() && !c.hlines.empty() && !c.vlines.empty())
+    cv.rect(static_cast<int>(sx(c.vlines[0])), top, static_cast<int>(left + pw),
+            static_cast<int>(std::max(static_cast<float>(top), sy(c.hlines[0]))), 0xe3f2e3);
   // Grid and ticks.
   auto xt = c.log_x ? log_ticks(x_lo, x_hi) : ticks(x_lo, x_hi, 8);
   auto yt = c.log_y ? log_ticks(y_lo * 0.8, y_hi * 1.25) : ticks(Y0, Y1, 7);
@@ -139,7 +143,11 @@ std::vector<unsigned char> render_chart(const Chart& c, int width, int height) {
     std::string s = fmt(v);
     cv.text(left - 8 - Canvas::text_width(s), y - 6, s, 0x444444);
   }
+  const bool corner = !c.corner_label.empty() && !c.hlines.empty() && !c.vlines.empty();
+  if (corner)
+    cv.text(sx(c.vlines[0]) + 8, std::max(static_cast<float>(top) + 4, sy(c.hlines[0]) - 20.0f), c.corner_label, 0x2a7a2a);
   for (double h : c.hlines) cv.line(static_cast<float>(left), sy(h), left + pw, sy(h), 0x888888, 1.5f);
+  for (double v : c.vlines) cv.line(sx(v), static_cast<float>(top), sx(v), top + ph, 0x888888, 1.5f);
   cv.line(static_cast<float>(left), static_cast<float>(top), static_cast<float>(left), top + ph, 0x222222, 1.5f);
   cv.line(static_cast<float>(left), top + ph, left + pw, top + ph, 0x222222, 1.5f);
   cv.text(left + (pw - Canvas::text_width(c.x_label)) / 2, static_cast<float>(height - 30), c.x_label, 0x222222);
@@ -154,11 +162,11 @@ std::vector<unsigned char> render_chart(const Chart& c, int width, int height) {
       cv.rect(x - 3, y - 3, x + 4, y + 4, s.color);
     }
   }
-  // Legend, top right.
-  float ly = static_cast<float>(top + 8);
+  // Legend, top right (or bottom left).
   float lw = 0;
   for (const auto& s : c.series) lw = std::max(lw, Canvas::text_width(s.label));
-  float lx = left + pw - lw - 40;
+  float ly = c.legend_bottom_left ? top + ph - 8 - 22.0f * static_cast<float>(c.series.size()) : static_cast<float>(top + 8);
+  float lx = c.legend_bottom_left ? left + 16.0f : left + pw - lw - 40;
   for (const auto& s : c.series) {
     cv.line(lx, ly + 7, lx + 22, ly + 7, s.color, 3);
     cv.text(lx + 28, ly, s.label, 0x222222);

@@ -20,6 +20,11 @@ struct Chart {
   bool log_x = false, log_y = false;
   double y_min = 0, y_max = 0;  // both 0: from the data (with 0 included on a linear axis)
   std::vector<double> hlines;   // horizontal reference lines (e.g. 1.0 = geometry)
+  std::vector<double> vlines;   // vertical reference lines (e.g. a target's speed-up)
+  // Where both reference lines' ends meet (the first of each): a shaded corner above and right of
+  // them, labelled (a region a target asks for).
+  std::string corner_label;
+  bool legend_bottom_left = false;  // the legend's corner (default: top right)
 };
 
 // The rectangles (x0, y0, x1, y1: pixels from the text's top-left corner, ends excluded) that

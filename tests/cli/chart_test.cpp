@@ -1,3 +1,5 @@
+#include <cmath>
+
 #include <gtest/gtest.h>
 
 #include "chart.h"
@@ -28,4 +30,38 @@ TEST(Chart, LogAxesAndEmptyChartsDoNotBreak) {
   EXPECT_EQ(render_chart(c, 300, 200).size(), 300u * 200 * 4);
   Chart empty;
   EXPECT_EQ(render_chart(empty, 100, 100).size(), 100u * 100 * 4);
+}
+
+// Reference lines both ways, and the corner they bound (a target's region) shaded: only above
+// the horizontal line and right of the vertical one, inside the plot.
+TEST(Chart, TheCornerOfTheReferenceLinesIsShaded) {
+  Chart c;
+  c.series.push_back({"s", {1, 5}, {12, 30}, 0x0000ff});
+  c.hlines = {28};
+  c.vlines = {3};
+  c.y_min = 10;
+  c.y_max = 32;
+  c.corner_label = "x";
+  c.legend_bottom_left = true;
+  const int w = 600, h = 400;
+  auto px = render_chart(c, w, h);
+  // The plot: 90 pixels left, 20 right, 70 top and bottom; x from 1 to 5, y from 10 to 32.
+  const float x3 = 90 + (3.0f - 1) / 4 * 490, y28 = 70 + 260 - (28.0f - 10) / 22 * 260;
+  int shaded = 0, outside = 0, grey_rows = 0;
+  for (int y = 0; y < h; ++y) {
+    bool grey = false;
+    for (int x = 0; x < w; ++x) {
+      const unsigned char* p = &px[(static_cast<size_t>(y) * w + x) * 4];
+      if (p[0] == 0xe3 && p[1] == 0xf2 && p[2] == 0xe3) {
+        ++shaded;
+        outside += x < x3 - 1 || x > 580 || y < 70 || y > y28 + 1;
+      }
+      // The vertical line, anti-aliased: grey on the pixels beside x = 3.
+      grey |= std::abs(x + 0.5f - x3) < 1 && p[0] == p[1] && p[1] == p[2] && p[0] < 0xd0;
+    }
+    grey_rows += grey;
+  }
+  EXPECT_GT(shaded, (580 - x3) * (y28 - 70) / 2);  // most of it (grid lines and the label cross it)
+  EXPECT_EQ(outside, 0);
+  EXPECT_GT(grey_rows, 200);  // the vertical line, nearly the plot's height of 260
 }
