@@ -63,8 +63,6 @@ FlowResult::Spread spread(std::vector<double> t) {
   return s;
 }
 
-// Where the plans' snapshots lie on screen: each snapshot's planned quad (in its window, around Ta
-// along Ho and Uo) projected, as pixel boxes from the top left.
 // The screen box (pixels, top-left origin) of world points; false where one lies behind the eye.
 bool screen_box(std::span<const glm::vec3> points, const glm::mat4& vp, const runtime::SceneCamera& cam, glm::vec4* box) {
   *box = glm::vec4(1e30f, 1e30f, -1e30f, -1e30f);
@@ -78,7 +76,8 @@ bool screen_box(std::span<const glm::vec3> points, const glm::mat4& vp, const ru
   return true;
 }
 
-// What the impostor path refreshed in a frame, as screen boxes: each snapshot's planned quad, and
+// What the impostor path refreshed in a frame, as screen boxes: each snapshot's planned quad (in its
+// window, around Ta along Ho and Uo) projected, and
 // each character drawn as geometry in place of a snapshot that would have been drawn once
 // (ImpostorConfig::short_lived_as_geometry): the box of its model's poses where it stands.
 // plans[m] is models[m]'s.

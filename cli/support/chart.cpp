@@ -123,7 +123,8 @@ std::vector<unsigned char> render_chart(const Chart& c, int width, int height) {
   auto sy = [&](double v) { return static_cast<float>(top + ph - (ty(v) - Y0) / (Y1 - Y0) * ph); };
 
   cv.text((width - Canvas::text_width(c.title, 2.5f)) / 2, 14, c.title, 0x222222, 2.5f);
-  if (!c.corner_label.empty() && !c.hlines.empty() && !c.vlines.empty())
+  const bool corner = !c.corner_label.empty() && !c.hlines.empty() && !c.vlines.empty();
+  if (corner)
     cv.rect(static_cast<int>(sx(c.vlines[0])), top, static_cast<int>(left + pw),
             static_cast<int>(std::max(static_cast<float>(top), sy(c.hlines[0]))), 0xe3f2e3);
   // Grid and ticks.
@@ -143,7 +144,6 @@ std::vector<unsigned char> render_chart(const Chart& c, int width, int height) {
     std::string s = fmt(v);
     cv.text(left - 8 - Canvas::text_width(s), y - 6, s, 0x444444);
   }
-  const bool corner = !c.corner_label.empty() && !c.hlines.empty() && !c.vlines.empty();
   if (corner)
     cv.text(sx(c.vlines[0]) + 8, std::max(static_cast<float>(top) + 4, sy(c.hlines[0]) - 20.0f), c.corner_label, 0x2a7a2a);
   for (double h : c.hlines) cv.line(static_cast<float>(left), sy(h), left + pw, sy(h), 0x888888, 1.5f);
