@@ -862,7 +862,8 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
       const float a = aligned_pixels(camera, centre[p], parts[p].radius * sc);
       if (std::isfinite(a)) px = a;
     }
-    const int wclass = choose_window(config_.windows, px * config_.texels_per_pixel);
+    const int wclass = choose_window(config_.windows, std::max(px * config_.texels_per_pixel,
+                                                               static_cast<float>(config_.smallest_part_window)));
     PartCache& pc = pcs[p];
     due[p] = all;
     if (pc.window.valid() && pc.window.size_class != wclass) {

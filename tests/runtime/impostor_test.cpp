@@ -147,7 +147,15 @@ TEST(WindowChoice, SmallestThatHolds) {
   EXPECT_EQ(choose_window(w, 64.0f), 2);
   EXPECT_EQ(choose_window(w, 33.0f), 2);
   EXPECT_EQ(choose_window(w, 32.0f), 3);
-  EXPECT_EQ(choose_window(w, 1.0f), 3);
+  EXPECT_EQ(choose_window(w, 17.0f), 3);
+  EXPECT_EQ(choose_window(w, 16.0f), 4);
+  EXPECT_EQ(choose_window(w, 9.0f), 4);
+  EXPECT_EQ(choose_window(w, 8.0f), 5);
+  EXPECT_EQ(choose_window(w, 1.0f), 5);
+  // The paper's four sizes alone: the smallest is 32.
+  WindowSizes paper;
+  paper.count = 4;
+  EXPECT_EQ(choose_window(paper, 8.0f), 3);
 }
 
 TEST(Atlas, PacksSharesAndReleasesPages) {

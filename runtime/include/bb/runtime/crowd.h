@@ -56,7 +56,7 @@ enum class RenderMode {
 };
 
 struct ImpostorConfig {
-  WindowSizes windows;            // 256, 128, 64, 32 by default (section 4.3)
+  WindowSizes windows;            // 256, 128, 64, 32 (section 4.3), 16, 8 by default
   int page_size = 1024;           // atlas page, pixels (square)
   int max_pages = 32;             // when all are full, characters fall back to geometry
   CacheConfig cache;              // section 5
@@ -159,6 +159,11 @@ struct ImpostorConfig {
   // impostors 26.2; 30.4 against 31.7 with 2 texels + blending). Off by default: far better
   // quality between refreshes, but short of 28 dB at 8 degrees and slower.
   bool part_cards = false;
+  // Part cards take no window smaller than this (pixels): a small part keeps the texels it had
+  // in the paper's smallest window. Flow test bed, part cards at 8 degrees, posture off, 30
+  // frames: 25.59 dB in 8 atlas pages with 32, 25.54 dB in 12 pages with windows down to 8, and
+  // no faster (impostor frame 5.0-5.1 against 5.2-5.4 ms).
+  int smallest_part_window = 32;
   // Part cards of limbs (BodyPart::elongation >= kLimbElongation, flatness <= kLimbFlatness:
   // thighs, shins, feet, upper arms, forearms on our body) turn about the limb's axis to face the
   // eye between snapshots, as a cylinder looks the same turned about its axis; their view test is
