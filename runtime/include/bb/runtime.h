@@ -8,7 +8,7 @@
 //   // Once, with the game's GL 4.5 core context current:
 //   bb::Result<rt::Model> model = rt::load_model("walker.glb");       // skinned glTF, MSFT_lod
 //   if (!model) { std::puts(model.error().message().c_str()); return; }  // "file: $.path: reason"
-//   rt::ImpostorConfig config;                    // windows 256/128/64/32, posture 40 %, view 8 deg
+//   rt::ImpostorConfig config;                    // windows 256 to 8 px, posture 40 %, view 8 deg
 //   rt::Crowd crowd(*model);
 //   for (int i = 0; i < 1000; ++i)
 //     crowd.add({.position = {2.0f * (i % 40), 0, 2.0f * (i / 40)}, .yaw = 0.1f * i,
