@@ -246,7 +246,8 @@ struct ImpostorConfig {
 };
 inline constexpr float kLimbElongation = 2.0f, kLimbFlatness = 1.7f;
 // Index of `w`'s fitted rectangle (ImpostorConfig::fit_quads_to_coverage) in the renderer's list:
-// one slot per smallest-window square of every page.
+// one slot per smallest-window square of every page (16 bytes each: with 8-pixel windows 256 KB
+// for a 1024-pixel page, whose RGBA8 layer takes 4 MB).
 inline int coverage_slot(const AtlasWindow& w, int page_size, int smallest_window) {
   const int per_row = page_size / smallest_window;
   return (w.page * per_row + w.y / smallest_window) * per_row + w.x / smallest_window;
