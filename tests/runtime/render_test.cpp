@@ -322,9 +322,10 @@ TEST(CrowdRender, SmallCharactersTakeSmallWindows) {
     FrameStats stats;
     double psnr = 0;
   };
-  auto run = [&](const WindowSizes& windows) {
+  auto run = [&](const WindowSizes& windows, bool part_cards = false) {
     ImpostorConfig cfg = refresh_always();
     cfg.windows = windows;
+    cfg.part_cards = part_cards;
     cfg.texels_per_pixel = 1.0f;  // the flow test bed's: exactly 1 texel per pixel
     cfg.texel_per_pixel = true;
     FramePlanner planner(*m, cfg);
@@ -363,6 +364,13 @@ TEST(CrowdRender, SmallCharactersTakeSmallWindows) {
   EXPECT_EQ(b.stats.impostors_per_window[3], 400);
   EXPECT_LT(4 * ta, tb);  // the same pictures in a quarter of the atlas or less
   EXPECT_NEAR(a.psnr, b.psnr, 0.1);
+  // Part cards keep the paper's smallest window (ImpostorConfig::smallest_part_window).
+  const Run c = run(small, true);
+  std::printf("part cards: %d cards, per class %d %d %d %d %d %d\n", c.stats.part_cards, c.stats.impostors_per_window[0],
+              c.stats.impostors_per_window[1], c.stats.impostors_per_window[2], c.stats.impostors_per_window[3],
+              c.stats.impostors_per_window[4], c.stats.impostors_per_window[5]);
+  EXPECT_GT(c.stats.part_cards, 400);
+  EXPECT_EQ(c.stats.impostors_per_window[3], c.stats.part_cards);
 }
 
 // DrawOptions::flush_every_indices splits the instanced draws of the geometry and of the
@@ -914,7 +922,7 @@ TEST(CrowdRender, QuadsFittedToTheCoverageHoldEveryCoveredTexel) {
           const glm::vec2 lo = glm::vec2(x, y) / float(size) * 2.0f - 1.0f, hi = glm::vec2(x + 1, y + 1) / float(size) * 2.0f - 1.0f;
           outside += lo.x < r.x || lo.y < r.y || hi.x > r.z || hi.y > r.w;
         }
-      EXPECT_GT(covered, size * size / 25);  // a picture, not an empty window (the 8-texel windows of small parts too)
+      EXPECT_GT(covered, size * size / 25);  // a picture, not an empty window (a small part fills little of its 32)
       EXPECT_EQ(outside, 0);
       // And no larger: the covered texels' bounds widened by the same margin (the taps' reach, a
       // few texels) on every side.
