@@ -41,6 +41,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   if (s.geometry && r.geometry_target_samples != s.msaa) j["msaa_asked"] = s.msaa;
   if (s.impostor) j["impostor_target_samples"] = r.impostor_target_samples;
   j["texels_per_pixel"] = s.texels_per_pixel;
+  j["window_sizes"] = std::vector<int>(s.windows.size.begin(), s.windows.size.begin() + s.windows.count);
   auto r3 = [](float v) { return std::round(static_cast<double>(v) * 1000.0) / 1000.0; };
   j["posture"] = s.posture_test ? ordered_json(r3(s.posture_threshold)) : ordered_json("off");
   j["view_deg"] = s.view_test ? ordered_json(r3(s.view_deg)) : ordered_json("off");
@@ -380,6 +381,26 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
       scaling_counts.push_back(n);
     }
     if (scaling_counts.empty()) return fail("--scaling-humans: expected at least one crowd size");
+  }
+  // The impostor windows' sizes: 1 to 8 of them, each 1 to 1024 pixels (an atlas page), largest first.
+  {
+    runtime::WindowSizes w;
+    w.count = 0;
+    std::stringstream ls(a.window_sizes);
+    const std::string expected = "--window-sizes: expected 1 to 8 window sizes in pixels, from 1 to 1024, largest first, separated by commas";
+    for (std::string item; std::getline(ls, item, ',');) {
+      int n = 0;
+      const auto [end, ec] = std::from_chars(item.data(), item.data() + item.size(), n);
+      if (ec != std::errc() || end != item.data() + item.size() || n < 1 || n > 1024)
+        return fail(expected + " (got \"" + item + "\" in \"" + a.window_sizes + "\")");
+      if (w.count == static_cast<int>(w.size.size())) return fail(expected + " (got more than 8 in \"" + a.window_sizes + "\")");
+      if (w.count > 0 && n >= w.size[static_cast<std::size_t>(w.count - 1)])
+        return fail(expected + " (" + std::to_string(n) + " does not come after " +
+                    std::to_string(w.size[static_cast<std::size_t>(w.count - 1)]) + " in \"" + a.window_sizes + "\")");
+      w.size[static_cast<std::size_t>(w.count++)] = n;
+    }
+    if (w.count == 0) return fail(expected + " (got \"" + a.window_sizes + "\")");
+    s.windows = w;
   }
   s.texels_per_pixel = a.texels_per_pixel;
   if (a.main_files) s.keep_frames = {0, s.frames / 2};
@@ -734,6 +755,9 @@ void add_flow_command(CLI::App& app, int* status) {
       ->capture_default_str();
   cmd->add_option("--texels-per-pixel", a->texels_per_pixel, "Impostor window texels per screen pixel")
       ->capture_default_str()->check(finite_number(0.25, 4.0));
+  cmd->add_option("--window-sizes", a->window_sizes,
+                  "Impostor window sizes in pixels, largest first (256,128,64,32: the paper's; 16 and 8 serve the few-pixel characters of large crowds; part cards take none under 32)")
+      ->capture_default_str();
   cmd->add_option("--impostor-edges", a->impostor_edges,
                   "Impostor edges: blend (sorted, soft), samples (coverage per sample), coverage (alpha to coverage), test (alpha test), centre (one tap at the pixel centre, alpha test: with --snapshot-grid pixels a fresh impostor is the geometry's single-sampled pixels) or auto (blend)")
       ->capture_default_str();

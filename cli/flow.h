@@ -84,6 +84,7 @@ struct FlowSettings {
   // snapshot costs what drawing the character does), 0 off (every refresh a snapshot), 1 on.
   int short_lived = -1;
   unsigned planner_threads = 0;             // ImpostorConfig::planner_threads (0: every hardware thread)
+  runtime::WindowSizes windows;             // ImpostorConfig::windows (the runtime's default: 256 to 8)
   std::string clip;              // the clip every model walks; empty: the first named like "walk", else the first that walks, else 0
   // Speed the clip walks at, model units per second; 0: from the clip name "..._1.20mps" (metres,
   // glTF's unit), else measured (BakedClip::ground_speed), else none (played at its own rate).
@@ -201,6 +202,9 @@ struct FlowArgs {
   // (animation.png; with main_files only).
   bool animation = false;
   std::string scaling_list = "20,100,500,1000,2000,5000,10000";
+  // --window-sizes: the impostor windows' sizes, pixels, largest first ("256,128,64,32": the
+  // paper's alone).
+  std::string window_sizes = "256,128,64,32,16,8";
   int scaling_frames = 10;
 };
 

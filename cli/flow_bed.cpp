@@ -148,6 +148,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   config.cache.distance_weighting = s.distance_weighting;
   config.cache.reference_pixels = s.screen_weighting_px;
   config.texels_per_pixel = s.texels_per_pixel;
+  config.windows = s.windows;
   config.snapshot_lod_from_screen = s.snapshot_lod_from_screen;
   config.perspective_snapshots = s.perspective_snapshots;
   config.part_cards = s.part_cards;

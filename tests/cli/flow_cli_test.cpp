@@ -8,6 +8,7 @@
 #include <iterator>
 #include <set>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -565,6 +566,31 @@ TEST(FlowCli, TargetsAreCheckedWithTheGivenSettings) {
   }
 }
 
+// --window-sizes: the paper's four windows spread 10,000 few-pixel RiggedSimples over ten atlas
+// pages; the default's 16- and 8-pixel windows hold them in one.
+TEST(FlowCli, WindowSizesChooseTheAtlasWindows) {
+  std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/RiggedSimple.gltf";
+  if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
+  fs::path d = fs::temp_directory_path() / "bb_flow_window_sizes";
+  fs::remove_all(d);
+  auto pages = [&](const std::string& sizes, std::vector<int> expected) {
+    Out o = run("flow --model " + model + " --humans 10000 --frames 2 --mode impostor --size 640x512 --json -o " +
+                d.string() + (sizes.empty() ? "" : " --window-sizes " + sizes));
+    if (o.text.find("EGL") != std::string::npos && o.status != 0) return -1;
+    EXPECT_EQ(o.status, 0) << o.text;
+    if (o.status != 0) return -1;
+    auto j = nlohmann::json::parse(last_json_line(o.text));
+    EXPECT_EQ(j["window_sizes"].get<std::vector<int>>(), expected);
+    return j["atlas_pages_used"].get<int>();
+  };
+  const int paper = pages("256,128,64,32", {256, 128, 64, 32});
+  if (paper < 0) GTEST_SKIP() << "no headless OpenGL";
+  const int ours = pages("", {256, 128, 64, 32, 16, 8});
+  std::printf("atlas pages: %d with the paper's windows, %d with the default's\n", paper, ours);
+  EXPECT_GE(paper, 8);  // 10,000 windows of 32x32, 1,024 to a page
+  EXPECT_LE(ours, 2);
+}
+
 TEST(FlowCli, BadFlagsAreErrors) {
   for (const char* args : {"flow --size 12", "flow --size 640x480px", "flow --size 99999x99999", "flow --mode fast", "flow --posture -1", "flow --view abc",
                            "flow --sweep size", "flow --model /nonexistent.glb --frames 1",
@@ -578,7 +604,8 @@ TEST(FlowCli, BadFlagsAreErrors) {
                            "flow --flush-every 0", "flow --flush-every often", "flow --flush-every 12k",
                            "flow --short-lived sometimes", "flow --targets --mode impostor",
                            "flow --texels-per-pixel nan", "flow --orbit inf", "flow --orbit 1e30", "flow --view inf",
-                           "flow --view 181"}) {
+                           "flow --view 181", "flow --window-sizes 8,16", "flow --window-sizes 2048",
+                           "flow --window-sizes 64,,32", "flow --window-sizes 256,128,64,32,16,8,4,2,1"}) {
     Out o = run(args);
     EXPECT_NE(o.status, 0) << args;
     EXPECT_NE(o.text.find("flow"), std::string::npos) << args << ": " << o.text;
