@@ -133,18 +133,14 @@ float ImplicitSurface::field_gradient(const glm::vec3& x, glm::vec3* gradient) c
   return f;
 }
 
-std::optional<float> ImplicitSurface::outermost_intersection(const glm::vec3& origin,
-                                                             const glm::vec3& direction,
-                                                             float max_distance) const {
-  float len = glm::length(direction);
-  if (!(len > 0.0f) || !(max_distance > 0.0f)) return std::nullopt;
-  glm::vec3 d = direction / len;
+std::optional<float> outermost_crossing(std::span<const PlacedPrimitive> prims, const glm::vec3& origin,
+                                        const glm::vec3& d, float max_t, bool far_end_inside_counts) {
   // Per primitive on the ray: q^2(t) = a t^2 + b t + c, support where q^2 < k^2.
   struct Span { float t0, t1, a, b, c, inv_reach2, scale, step; };
   Span spans[256];
   int n = 0;
   float t_hi = -1.0f;
-  for (const PlacedPrimitive& p : prims_) {
+  for (const PlacedPrimitive& p : prims) {
     glm::vec3 o = p.to_unit * (origin - p.center);
     glm::vec3 v = p.to_unit * d;
     float a = glm::dot(v, v), b = 2.0f * glm::dot(o, v), c = glm::dot(o, o);
@@ -152,9 +148,9 @@ std::optional<float> ImplicitSurface::outermost_intersection(const glm::vec3& or
     if (disc <= 0.0f) continue;
     float s = std::sqrt(disc);
     float t0 = (-b - s) / (2.0f * a), t1 = (-b + s) / (2.0f * a);
-    if (t1 < 0.0f || t0 > max_distance) continue;
+    if (t1 < 0.0f || t0 > max_t) continue;
     t0 = std::max(t0, 0.0f);
-    t1 = std::min(t1, max_distance);
+    t1 = std::min(t1, max_t);
     if (n == 256) break;  // more primitives than any body has on one ray
     spans[n++] = {t0, t1, a, b, c, p.inv_reach2, p.scale, 0.25f * p.min_radius};
     t_hi = std::max(t_hi, t1);
@@ -175,9 +171,10 @@ std::optional<float> ImplicitSurface::outermost_intersection(const glm::vec3& or
     return f;
   };
   // March from the far end of the supports towards the origin; the first inside point found
-  // after an outside one brackets the outermost crossing (the ray may end inside the skin).
+  // after an outside one brackets the outermost crossing.
   float t_out = t_hi, h = 0.0f;
   bool outside = eval(t_hi, &h) < kIso;
+  if (!outside && far_end_inside_counts) return t_hi;
   bool found = false;
   float t = t_hi;
   while (t > 0.0f) {
@@ -194,6 +191,15 @@ std::optional<float> ImplicitSurface::outermost_intersection(const glm::vec3& or
     if (eval(m, nullptr) >= kIso) t_in = m; else t_out = m;
   }
   return 0.5f * (t_in + t_out);
+}
+
+std::optional<float> ImplicitSurface::outermost_intersection(const glm::vec3& origin,
+                                                             const glm::vec3& direction,
+                                                             float max_distance) const {
+  float len = glm::length(direction);
+  if (!(len > 0.0f) || !(max_distance > 0.0f)) return std::nullopt;
+  // The ray may end inside the skin: the march goes on to the outermost crossing before it.
+  return outermost_crossing(prims_, origin, direction / len, max_distance, false);
 }
 
 }  // namespace bb::modeler

@@ -8,6 +8,7 @@
 #pragma once
 
 #include <optional>
+#include <span>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -39,6 +40,16 @@ struct PlacedPrimitive {
   int source;            // index into Body::primitives
   Aabb support;          // world box of the region where the primitive's field is non-zero
 };
+
+// The outermost crossing of the iso-surface (kIso) of `prims`' summed field along the ray
+// origin + t * d, 0 <= t <= max_t (t in units of |d|): per primitive, the span of t where it
+// contributes; a march inwards from the far end of the spans in steps of a quarter of the
+// thinnest contributing primitive's radius (at most 1 cm), then bisection to 1e-6. A ray whose
+// far end lies inside the skin gives that end when `far_end_inside_counts`, else the march goes
+// on to the first inside point after an outside one. Nothing when no crossing is found. The one
+// implementation behind ImplicitSurface::outermost_intersection and the mesher's part fields.
+std::optional<float> outermost_crossing(std::span<const PlacedPrimitive> prims, const glm::vec3& origin,
+                                        const glm::vec3& d, float max_t, bool far_end_inside_counts);
 
 class ImplicitSurface {
  public:
