@@ -2,7 +2,10 @@
 // oriented 2-manifold. Corefinement computes the exact intersection curves of the pieces and
 // keeps the outer parts, so the joined mesh has no cracks and no self-intersections provided
 // each piece has none (contour pieces are radial graphs around their axis, which cannot fold).
+#include <algorithm>
+#include <array>
 #include <exception>
+#include <numeric>
 #include <vector>
 
 #include <CGAL/Exact_predicates_exact_constructions_kernel.h>
@@ -29,6 +32,57 @@ bool to_surface_mesh(const PlainMesh& in, Mesh& out) {
   }
   return true;
 }
+// The same mesh with its vertices sorted by position (x, then y, then z; where two share one, by
+// the smallest position next to them) and its triangles, each turned to start at its smallest
+// index, sorted by their indices. Corefinement numbers the vertices it creates on the
+// intersection curves in an order that depends on where its boxes lie in memory, so the same
+// pieces gave unions numbered differently from one process to the next (the default body's level
+// 1: three orders in four runs of `bodybuilder mesh`), and every later step followed that order
+// into the files written. The union's vertices have distinct positions (every level of the
+// default body and its seeded variants), so this order is the mesh's own.
+PlainMesh canonical_order(PlainMesh m) {
+  const size_t n = m.positions.size();
+  auto less = [](const glm::vec3& a, const glm::vec3& b) {
+    return a.x != b.x ? a.x < b.x : a.y != b.y ? a.y < b.y : a.z < b.z;
+  };
+  std::vector<glm::vec3> nearest(m.positions);  // the smallest neighbour position: the tie-break
+  std::vector<char> seen(n, 0);
+  for (size_t t = 0; t + 2 < m.indices.size(); t += 3)
+    for (int k = 0; k < 3; ++k) {
+      const uint32_t v = m.indices[t + k];
+      for (int j = 1; j < 3; ++j) {
+        const glm::vec3& q = m.positions[m.indices[t + (k + j) % 3]];
+        if (!seen[v] || less(q, nearest[v])) nearest[v] = q;
+        seen[v] = 1;
+      }
+    }
+  std::vector<uint32_t> order(n);
+  std::iota(order.begin(), order.end(), 0u);
+  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+    if (m.positions[a] != m.positions[b]) return less(m.positions[a], m.positions[b]);
+    return less(nearest[a], nearest[b]);
+  });
+  std::vector<uint32_t> rank(n);
+  PlainMesh out;
+  out.positions.reserve(n);
+  for (uint32_t r = 0; r < n; ++r) {
+    rank[order[r]] = r;
+    out.positions.push_back(m.positions[order[r]]);
+  }
+  std::vector<std::array<uint32_t, 3>> tris;
+  tris.reserve(m.indices.size() / 3);
+  for (size_t t = 0; t + 2 < m.indices.size(); t += 3) {
+    std::array<uint32_t, 3> f{rank[m.indices[t]], rank[m.indices[t + 1]], rank[m.indices[t + 2]]};
+    // Turned, not reordered: the winding stays.
+    while (f[0] > f[1] || f[0] > f[2]) f = {f[1], f[2], f[0]};
+    tris.push_back(f);
+  }
+  std::sort(tris.begin(), tris.end());
+  out.indices.reserve(m.indices.size());
+  for (const auto& f : tris) out.indices.insert(out.indices.end(), f.begin(), f.end());
+  return out;
+}
+
 }  // namespace
 
 Result<PlainMesh> mesh_union(const std::vector<PlainMesh>& pieces) {
@@ -55,7 +109,7 @@ Result<PlainMesh> mesh_union(const std::vector<PlainMesh>& pieces) {
       auto h = acc.halfedge(f);
       for (int k = 0; k < 3; ++k, h = acc.next(h)) out.indices.push_back(id[acc.target(h).idx()]);
     }
-    return out;
+    return canonical_order(std::move(out));
   } catch (const std::exception& e) {
     return Error{"", "union", std::string("CGAL: ") + e.what()};
   }
