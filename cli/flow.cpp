@@ -27,6 +27,20 @@ namespace bb::cli {
 
 namespace {
 
+// The whole numbers from `lo` to `hi` of a comma-separated list, in order; on failure the item
+// that is not one.
+Result<std::vector<int>> parse_int_list(const std::string& list, int lo, int hi) {
+  std::vector<int> out;
+  std::stringstream ls(list);
+  for (std::string item; std::getline(ls, item, ',');) {
+    int n = 0;
+    const auto [end, ec] = std::from_chars(item.data(), item.data() + item.size(), n);
+    if (ec != std::errc() || end != item.data() + item.size() || n < lo || n > hi) return Error{"", "", item};
+    out.push_back(n);
+  }
+  return out;
+}
+
 namespace fs = std::filesystem;
 using nlohmann::ordered_json;
 
@@ -369,38 +383,25 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     return fail("--impostor-target: expected auto or scene (got \"" + a.impostor_target + "\")");
   s.impostor_target_samples = a.impostor_target == "scene" ? a.msaa : 0;
   // The crowd sizes of --scaling, checked before anything runs.
-  std::vector<int> scaling_counts;
-  {
-    std::stringstream ls(a.scaling_list);
-    for (std::string item; std::getline(ls, item, ',');) {
-      int n = 0;
-      const auto [end, ec] = std::from_chars(item.data(), item.data() + item.size(), n);
-      if (ec != std::errc() || end != item.data() + item.size() || n < 1 || n > 100000)
-        return fail("--scaling-humans: expected crowd sizes from 1 to 100000, separated by commas (got \"" + item +
-                    "\" in \"" + a.scaling_list + "\")");
-      scaling_counts.push_back(n);
-    }
-    if (scaling_counts.empty()) return fail("--scaling-humans: expected at least one crowd size");
-  }
+  auto scaling = parse_int_list(a.scaling_list, 1, 100000);
+  if (!scaling)
+    return fail("--scaling-humans: expected crowd sizes from 1 to 100000, separated by commas (got \"" +
+                scaling.error().reason + "\" in \"" + a.scaling_list + "\")");
+  const std::vector<int> scaling_counts = *scaling;
+  if (scaling_counts.empty()) return fail("--scaling-humans: expected at least one crowd size");
   // The impostor windows' sizes: 1 to 8 of them, each 1 to 1024 pixels (an atlas page), largest first.
   {
-    runtime::WindowSizes w;
-    w.count = 0;
-    std::stringstream ls(a.window_sizes);
     const std::string expected = "--window-sizes: expected 1 to 8 window sizes in pixels, from 1 to 1024, largest first, separated by commas";
-    for (std::string item; std::getline(ls, item, ',');) {
-      int n = 0;
-      const auto [end, ec] = std::from_chars(item.data(), item.data() + item.size(), n);
-      if (ec != std::errc() || end != item.data() + item.size() || n < 1 || n > 1024)
-        return fail(expected + " (got \"" + item + "\" in \"" + a.window_sizes + "\")");
-      if (w.count == static_cast<int>(w.size.size())) return fail(expected + " (got more than 8 in \"" + a.window_sizes + "\")");
-      if (w.count > 0 && n >= w.size[static_cast<std::size_t>(w.count - 1)])
-        return fail(expected + " (" + std::to_string(n) + " does not come after " +
-                    std::to_string(w.size[static_cast<std::size_t>(w.count - 1)]) + " in \"" + a.window_sizes + "\")");
-      w.size[static_cast<std::size_t>(w.count++)] = n;
-    }
-    if (w.count == 0) return fail(expected + " (got \"" + a.window_sizes + "\")");
-    s.windows = w;
+    auto sizes = parse_int_list(a.window_sizes, 1, 1024);
+    if (!sizes) return fail(expected + " (got \"" + sizes.error().reason + "\" in \"" + a.window_sizes + "\")");
+    if (sizes->empty() || sizes->size() > s.windows.size.size())
+      return fail(expected + " (got " + std::to_string(sizes->size()) + " in \"" + a.window_sizes + "\")");
+    for (std::size_t k = 1; k < sizes->size(); ++k)
+      if ((*sizes)[k] >= (*sizes)[k - 1])
+        return fail(expected + " (" + std::to_string((*sizes)[k]) + " does not come after " +
+                    std::to_string((*sizes)[k - 1]) + " in \"" + a.window_sizes + "\")");
+    std::copy(sizes->begin(), sizes->end(), s.windows.size.begin());
+    s.windows.count = static_cast<int>(sizes->size());
   }
   s.texels_per_pixel = a.texels_per_pixel;
   if (a.main_files) s.keep_frames = {0, s.frames / 2};

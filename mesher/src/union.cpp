@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <exception>
+#include <limits>
 #include <numeric>
 #include <vector>
 
@@ -45,17 +46,14 @@ PlainMesh canonical_order(PlainMesh m) {
   auto less = [](const glm::vec3& a, const glm::vec3& b) {
     return a.x != b.x ? a.x < b.x : a.y != b.y ? a.y < b.y : a.z < b.z;
   };
-  std::vector<glm::vec3> nearest(m.positions);  // the smallest neighbour position: the tie-break
-  std::vector<char> seen(n, 0);
+  // The smallest neighbour position of each vertex: the tie-break.
+  std::vector<glm::vec3> nearest(n, glm::vec3(std::numeric_limits<float>::max()));
   for (size_t t = 0; t + 2 < m.indices.size(); t += 3)
-    for (int k = 0; k < 3; ++k) {
-      const uint32_t v = m.indices[t + k];
+    for (int k = 0; k < 3; ++k)
       for (int j = 1; j < 3; ++j) {
         const glm::vec3& q = m.positions[m.indices[t + (k + j) % 3]];
-        if (!seen[v] || less(q, nearest[v])) nearest[v] = q;
-        seen[v] = 1;
+        if (less(q, nearest[m.indices[t + k]])) nearest[m.indices[t + k]] = q;
       }
-    }
   std::vector<uint32_t> order(n);
   std::iota(order.begin(), order.end(), 0u);
   std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
