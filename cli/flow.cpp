@@ -383,11 +383,11 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     return fail("--impostor-target: expected auto or scene (got \"" + a.impostor_target + "\")");
   s.impostor_target_samples = a.impostor_target == "scene" ? a.msaa : 0;
   // The crowd sizes of --scaling, checked before anything runs.
-  auto scaling = parse_int_list(a.scaling_list, 1, 100000);
-  if (!scaling)
+  auto scaling_list = parse_int_list(a.scaling_list, 1, 100000);
+  if (!scaling_list)
     return fail("--scaling-humans: expected crowd sizes from 1 to 100000, separated by commas (got \"" +
-                scaling.error().reason + "\" in \"" + a.scaling_list + "\")");
-  const std::vector<int> scaling_counts = *scaling;
+                scaling_list.error().reason + "\" in \"" + a.scaling_list + "\")");
+  const std::vector<int> scaling_counts = *scaling_list;
   if (scaling_counts.empty()) return fail("--scaling-humans: expected at least one crowd size");
   // The impostor windows' sizes: 1 to 8 of them, each 1 to 1024 pixels (an atlas page), largest first.
   {

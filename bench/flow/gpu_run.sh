@@ -187,6 +187,72 @@ set_budget() {
   flow budget_none $C4 $b
   for n in 400 200 100; do flow budget_$n $C4 $b --refresh-budget $n; done
 }
+# Thirty-fourth session: the present code (windows of 16 and 8 pixels, and everything since the
+# seventeenth) against the issue's targets, the paper's four window sizes against the default's, and
+# anyone's models at 10,000, in order of importance (a run that would pass the time limit is skipped).
+set_s34() {
+  local q="--impostor-parts --texels-per-pixel 2 --impostor-edges blend --card-depth pass"
+  local sc="--frames 2 --scaling --scaling-frames 16"
+  flow main $C4 --frames 120
+  flow worst $C4 --frames 60 --posture 0 --view 0
+  flow sweep_view $C4 --frames 60 --sweep view
+  flow scaling $C4 --frames 2 --gpu-stages --scaling --scaling-humans 20,100,1000,2000,5000,10000 --scaling-frames 8
+  flow win_paper $C4 $sc --scaling-humans 10000 --window-sizes 256,128,64,32
+  flow win_default $C4 $sc --scaling-humans 10000
+  flow best_8 $C4 --frames 60 --view 8 --posture off $q
+  flow parts_8 $C4 --frames 60 --view 8 --posture off --impostor-parts
+  for m in RiggedSimple.gltf CesiumMan.glb Fox.glb; do flow sc_${m%%.*} --model $M/$m $sc --scaling-humans 1000,10000; done
+  flow rs_orbit --model $M/RiggedSimple.gltf --frames 40 --orbit 30 --sweep view
+  for n in 1000 10000; do flow best_8_h$n $C4 --frames 20 --humans $n --view 8 --posture off $q --gpu-stages; done
+  flow sweep_posture $C4 --frames 60 --sweep posture
+  flow demo_main $C4 --frames 60
+}
+# The same session's follow-ups on the warm machine: the window sizes at 10,000 alternated, crowd
+# sizes where a GPU is geometry-bound (1,000 and 5,000 humans: the view sweep, the worst case, the
+# posture sweep), and where the worst case's time goes.
+set_s34b() {
+  local sc="--frames 2 --scaling --scaling-frames 16 --gpu-stages"
+  for i in 1 2 3; do
+    flow win_paper_$i $C4 $sc --scaling-humans 10000 --window-sizes 256,128,64,32
+    flow win_default_$i $C4 $sc --scaling-humans 10000
+  done
+  flow win_paper_dw $C4 $sc --scaling-humans 10000 --window-sizes 256,128,64,32 --distance-weighting
+  flow win_default_dw $C4 $sc --scaling-humans 10000 --distance-weighting
+  flow rs_paper --model $M/RiggedSimple.gltf $sc --scaling-humans 10000 --window-sizes 256,128,64,32
+  flow rs_default --model $M/RiggedSimple.gltf $sc --scaling-humans 10000
+}
+set_s34c() {
+  for n in 1000 5000; do
+    flow sweep_view_h$n $C4 --frames 40 --humans $n --sweep view
+    flow worst_h$n $C4 --frames 30 --humans $n --posture 0 --view 0
+  done
+  flow sweep_posture_h1000 $C4 --frames 40 --humans 1000 --sweep posture
+  flow parts_view_h1000 $C4 --frames 30 --humans 1000 --sweep view --impostor-parts
+  flow rs_orbit_h10000 --model $M/RiggedSimple.gltf --frames 30 --humans 10000 --orbit 30 --view 17 --posture off
+}
+set_s34d() {
+  flow worst_h1000_st $C4 --frames 30 --humans 1000 --posture 0 --view 0 --gpu-stages
+  flow worst_h1000_1 --model $M/default.glb --frames 30 --humans 1000 --posture 0 --view 0 --gpu-stages
+  flow worst_h1000_msaa1 $C4 --frames 30 --humans 1000 --posture 0 --view 0 --gpu-stages --msaa 1
+  flow worst_h1000_test $C4 --frames 30 --humans 1000 --posture 0 --view 0 --gpu-stages --impostor-edges test
+  flow worst_h1000_t1 $C4 --frames 30 --humans 1000 --posture 0 --view 0 --planner-threads 1
+  flow worst_h20_st $C4 --frames 60 --posture 0 --view 0 --gpu-stages
+}
+# After the worst case's planning went onto threads and its tight quads got cheaper: the worst
+# case again, the snapshot pass per page against layered (BB_NO_LAYERED_SNAPSHOTS), and the
+# targets' runs.
+set_s34e() {
+  for n in 20 1000 5000; do
+    flow e_worst_h$n $C4 --frames 30 --humans $n --posture 0 --view 0 --gpu-stages
+  done
+  BB_NO_LAYERED_SNAPSHOTS=1 flow e_worst_h1000_pages $C4 --frames 30 --humans 1000 --posture 0 --view 0 --gpu-stages
+  flow e_worst_h1000_t1 $C4 --frames 30 --humans 1000 --posture 0 --view 0 --planner-threads 1
+  flow e_sweep_view_h1000 $C4 --frames 40 --humans 1000 --sweep view
+  flow e_sweep_posture_h1000 $C4 --frames 40 --humans 1000 --sweep posture
+  flow e_main $C4 --frames 120
+  flow e_sweep_view $C4 --frames 60 --sweep view
+  flow e_scaling $C4 --frames 2 --gpu-stages --scaling --scaling-humans 20,100,1000,2000,5000,10000 --scaling-frames 8
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"

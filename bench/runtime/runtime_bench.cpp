@@ -102,6 +102,34 @@ BENCHMARK(BM_UpdateWalking)->Arg(10000)->Unit(benchmark::kMicrosecond);
 void BM_UpdateWalkingBudget(benchmark::State& state) { walk(state, 100); }
 BENCHMARK(BM_UpdateWalkingBudget)->Arg(10000)->Unit(benchmark::kMicrosecond);
 
+// The worst case of the paper's test bed: both thresholds 0, every character refreshed every
+// frame (its snapshot camera, window and skinning job planned), on one thread and on the default's.
+void BM_UpdateRefreshAll(benchmark::State& state) {
+  const int n = static_cast<int>(state.range(0));
+  Crowd crowd = make_crowd(n);
+  ImpostorConfig cfg{.max_pages = 256};
+  cfg.cache.posture_threshold = 0.0f;
+  cfg.cache.view_threshold_deg = 0.0f;
+  cfg.planner_threads = static_cast<unsigned>(state.range(1));
+  if (std::getenv("NOTIGHT")) cfg.tight_quads = false;
+  FramePlanner planner(model(), cfg);
+  SceneCamera cam = camera(n);
+  float t = 0.0f;
+  double refresh = 0;
+  for (auto _ : state) {
+    t += 1.0f / 60.0f;
+    const FramePlan& p = planner.plan(crowd, cam, t, RenderMode::kImpostor);
+    refresh += p.stats.refresh_fraction;
+    benchmark::DoNotOptimize(p.billboards.data());
+  }
+  state.SetItemsProcessed(state.iterations() * n);
+  state.counters["ns_per_character"] =
+      benchmark::Counter(static_cast<double>(n) * state.iterations(), benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["body_parts"] = static_cast<double>(model().body_parts().size());
+  state.counters["refresh_fraction"] = refresh / static_cast<double>(state.iterations());
+}
+BENCHMARK(BM_UpdateRefreshAll)->Args({1000, 1})->Args({1000, 0})->Unit(benchmark::kMicrosecond);
+
 // The geometry path's CPU work: animation state, culling, LOD.
 void BM_UpdateGeometry(benchmark::State& state) {
   const int n = static_cast<int>(state.range(0));

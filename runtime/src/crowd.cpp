@@ -18,31 +18,116 @@ namespace {
 // one replaces for the new one to be fitted (FramePlanner::fit_quad).
 constexpr std::uint32_t kFitAfterFrames = 2;
 
-// Tight quads: the 8 corners corner(k) (offsets from the snapshot's centre, world metres) projected
-// on the snapshot plane, in window units. Whole texels and one texel of margin, inside the window:
-// the quad (`quad`). The snapshot clears three texels more (`snapshot`), which the impostor
-// shader's taps at the quad's border reach (else they would read what an earlier snapshot left).
+// Tight quads: a box's 8 corners projected on the snapshot plane, in window units. Whole texels
+// and one texel of margin, inside the window: the quad (`quad`). The snapshot clears three texels
+// more (`snapshot`), which the impostor shader's taps at the quad's border reach (else they would
+// read what an earlier snapshot left).
 struct WindowRects {
   glm::vec4 quad, snapshot;
 };
-template <typename Corner>
-WindowRects window_rects(const SnapshotCamera& cam, int window_size, Corner&& corner) {
-  glm::vec2 rmin(1e30f), rmax(-1e30f);
+
+// The projected extent of boxes on the snapshot plane (window units, before the texel snapping):
+// snapping the union of extents gives the union of the snapped rects, so a character's parts are
+// snapped once.
+struct PlaneExtent {
+  glm::vec2 lo{1e30f}, hi{-1e30f};
+};
+
+// Adds the box centre ± axes[0] ± axes[1] ± axes[2] (offsets from the snapshot's centre, world
+// metres; `axes` the half edges) to `e`. The centre and axes are projected once and the corners
+// summed in the camera's frame: the refresh of a character with part-tight quads projects one
+// box per body part (the worst case of the test bed: 1,000 refreshes a frame).
+// add_box with the centre c and axes a0, a1, a2 already in the camera's frame (Ho, Uo, Vo).
+void add_framed_box(const SnapshotCamera& cam, const glm::vec3& c, const glm::vec3& a0, const glm::vec3& a1,
+                    const glm::vec3& a2, PlaneExtent& e) {
+  const float inv_half = 1.0f / cam.half_size;
+  // Corner k's signs along the three axes (bits 0, 1, 2 of k); lanes the compiler can vectorize.
+  static constexpr float s0[8] = {-1, 1, -1, 1, -1, 1, -1, 1}, s1[8] = {-1, -1, 1, 1, -1, -1, 1, 1},
+                         s2[8] = {-1, -1, -1, -1, 1, 1, 1, 1};
+  float x[8], y[8], z[8];
   for (int k = 0; k < 8; ++k) {
-    const glm::vec3 d = corner(k);
-    float s = 1.0f / cam.half_size;
-    glm::vec2 q(glm::dot(d, cam.ho), glm::dot(d, cam.uo));
-    if (cam.perspective) {
-      const float depth = glm::dot(d, cam.vo);
-      s *= cam.distance / std::max(cam.distance + depth, 1e-3f * cam.distance);
-      q -= cam.offset * (depth / cam.distance);  // off-axis window (aligned snapshots)
-    }
-    q *= s;
-    rmin = glm::min(rmin, q);
-    rmax = glm::max(rmax, q);
+    x[k] = c.x + s0[k] * a0.x + s1[k] * a1.x + s2[k] * a2.x;
+    y[k] = c.y + s0[k] * a0.y + s1[k] * a1.y + s2[k] * a2.y;
+    z[k] = c.z + s0[k] * a0.z + s1[k] * a1.z + s2[k] * a2.z;
   }
+  if (cam.perspective) {
+    const float dist = cam.distance, near = 1e-3f * cam.distance, inv_dist = 1.0f / cam.distance;
+    for (int k = 0; k < 8; ++k) {
+      const float s = inv_half * dist / std::max(dist + z[k], near);
+      x[k] = (x[k] - cam.offset.x * (z[k] * inv_dist)) * s;  // off-axis window (aligned snapshots)
+      y[k] = (y[k] - cam.offset.y * (z[k] * inv_dist)) * s;
+    }
+  } else {
+    for (int k = 0; k < 8; ++k) {
+      x[k] *= inv_half;
+      y[k] *= inv_half;
+    }
+  }
+  float x0 = x[0], x1 = x[0], y0 = y[0], y1 = y[0];
+  for (int k = 1; k < 8; ++k) {
+    x0 = std::min(x0, x[k]);
+    x1 = std::max(x1, x[k]);
+    y0 = std::min(y0, y[k]);
+    y1 = std::max(y1, y[k]);
+  }
+  e.lo = glm::min(e.lo, glm::vec2(x0, y0));
+  e.hi = glm::max(e.hi, glm::vec2(x1, y1));
+}
+
+void add_box(const SnapshotCamera& cam, const glm::vec3& centre, const glm::mat3& axes, PlaneExtent& e) {
+  auto frame = [&cam](const glm::vec3& v) { return glm::vec3(glm::dot(v, cam.ho), glm::dot(v, cam.uo), glm::dot(v, cam.vo)); };
+  add_framed_box(cam, frame(centre), frame(axes[0]), frame(axes[1]), frame(axes[2]), e);
+}
+
+// The box [lo, hi] placed by the affine `m` (columns: axes and translation) as add_box wants it,
+// relative to `origin`.
+void add_placed_box(const SnapshotCamera& cam, const glm::mat4& m, const glm::vec3& lo, const glm::vec3& hi,
+                    const glm::vec3& origin, PlaneExtent& e) {
+  const glm::vec3 h = 0.5f * (hi - lo);
+  const glm::mat3 axes(glm::vec3(m[0]) * h.x, glm::vec3(m[1]) * h.y, glm::vec3(m[2]) * h.z);
+  add_box(cam, glm::vec3(m * glm::vec4(0.5f * (lo + hi), 1.0f)) - origin, axes, e);
+}
+
+// The snapshot camera's frame seen from a character's model space: a model-space point p lies at
+// dot(p, f[j]) + k[j] along Ho, Uo, Vo (j = 0, 1, 2) from the snapshot's centre, placed by the
+// character's scale, yaw about +Y and position.
+struct ModelFrame {
+  glm::vec3 f[3];
+  glm::vec3 k;
+};
+ModelFrame model_frame(const SnapshotCamera& cam, const Character& ch) {
+  const float cy = std::cos(ch.yaw), sy = std::sin(ch.yaw), sc = ch.scale;
+  ModelFrame mf;
+  const glm::vec3 axes[3] = {cam.ho, cam.uo, cam.vo};
+  for (int j = 0; j < 3; ++j) {
+    const glm::vec3& a = axes[j];
+    mf.f[j] = sc * glm::vec3(cy * a.x - sy * a.z, a.y, sy * a.x + cy * a.z);  // the transposed placement
+    mf.k[j] = glm::dot(ch.position - cam.ta, a);
+  }
+  return mf;
+}
+
+// Adds the box [lo, hi] of a palette entry's space, carried into model space by the entry's
+// matrix (its three rows: model = rows * (p, 1)), to `e`: the box's centre and half edges are
+// taken into the camera's frame through the rows projected once on each axis.
+void add_carried_box(const SnapshotCamera& cam, const ModelFrame& mf, const glm::vec4 (&rows)[3], const glm::vec3& lo,
+                     const glm::vec3& hi, PlaneExtent& e) {
+  const glm::vec4 mid(0.5f * (lo + hi), 1.0f);
+  const glm::vec3 h = 0.5f * (hi - lo);
+  glm::vec3 c, a0, a1, a2;
+  for (int j = 0; j < 3; ++j) {
+    const glm::vec4 g = mf.f[j].x * rows[0] + mf.f[j].y * rows[1] + mf.f[j].z * rows[2];
+    c[j] = mf.k[j] + glm::dot(g, mid);
+    a0[j] = g.x * h.x;
+    a1[j] = g.y * h.y;
+    a2[j] = g.z * h.z;
+  }
+  add_framed_box(cam, c, a0, a1, a2, e);
+}
+
+WindowRects window_rects(const PlaneExtent& e, int window_size) {
   const float texel = 2.0f / static_cast<float>(window_size);
-  const glm::vec2 t0 = glm::floor(rmin / texel), t1 = glm::ceil(rmax / texel);
+  const glm::vec2 t0 = glm::floor(e.lo / texel), t1 = glm::ceil(e.hi / texel);
   return {glm::vec4(glm::clamp((t0 - 1.0f) * texel, -1.0f, 1.0f), glm::clamp((t1 + 1.0f) * texel, -1.0f, 1.0f)),
           glm::vec4(glm::clamp((t0 - 4.0f) * texel, -1.0f, 1.0f), glm::clamp((t1 + 4.0f) * texel, -1.0f, 1.0f))};
 }
@@ -88,6 +173,14 @@ glm::mat4 palette_matrix(std::span<const glm::vec4> pal, int entries, const Bake
   return pm;
 }
 
+// The rows of palette entry `entry`'s matrix (model = rows * (p, 1)) between baked frames f0 and f1.
+void palette_rows(std::span<const glm::vec4> pal, int entries, const BakedClip& bc, int f0, int f1, float blend, int entry,
+                  glm::vec4 (&rows)[3]) {
+  const glm::vec4* a = &pal[((bc.first_row + f0) * static_cast<std::size_t>(entries) + entry) * 3];
+  const glm::vec4* b = &pal[((bc.first_row + f1) * static_cast<std::size_t>(entries) + entry) * 3];
+  for (int r = 0; r < 3; ++r) rows[r] = a[r] + (b[r] - a[r]) * blend;
+}
+
 // Model space -> world for character `ch` (scale, yaw about +Y, position).
 glm::mat4 placement(const Character& ch) {
   const float cy = std::cos(ch.yaw), sy = std::sin(ch.yaw), sc = ch.scale;
@@ -95,10 +188,7 @@ glm::mat4 placement(const Character& ch) {
                    glm::vec4(ch.position, 1));
 }
 
-// Rects in window units as (x0, y0, x1, y1): the smallest holding both, and their overlap.
-glm::vec4 rect_union(const glm::vec4& a, const glm::vec4& b) {
-  return glm::vec4(glm::min(glm::vec2(a), glm::vec2(b)), glm::max(glm::vec2(a.z, a.w), glm::vec2(b.z, b.w)));
-}
+// Rects in window units as (x0, y0, x1, y1): their overlap.
 glm::vec4 rect_intersection(const glm::vec4& a, const glm::vec4& b) {
   return glm::vec4(glm::max(glm::vec2(a), glm::vec2(b)), glm::min(glm::vec2(a.z, a.w), glm::vec2(b.z, b.w)));
 }
@@ -211,14 +301,23 @@ BakedFrames baked_frames(const Model& m, const Character& ch, float time) {
 
 }  // namespace
 
-void FramePlanner::Chunk::clear(std::size_t lods) {
+void FramePlanner::Chunk::clear(std::size_t lods, std::size_t characters) {
   geometry.resize(lods);
   snapshots.resize(lods);
-  for (auto& g : geometry) g.clear();
-  for (auto& v : snapshots) v.clear();
+  for (auto& g : geometry) {
+    g.clear();
+    g.reserve(characters);
+  }
+  for (auto& v : snapshots) {
+    v.clear();
+    v.reserve(characters);
+  }
   billboards.clear();
+  billboards.reserve(characters);
   pending.clear();
+  pending.reserve(characters);
   deferred.clear();
+  deferred.reserve(characters);
   st = FrameStats{};
   budget_used = 0;
 }
@@ -417,28 +516,24 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
           // This frame's pose box.
           const auto& b0 = bc.bounds[f0];
           const auto& b1 = bc.bounds[f1];
-          const glm::vec3 lo = glm::min(b0[0], b1[0]) * ch.scale, hi = glm::max(b0[1], b1[1]) * ch.scale;
-          WindowRects r = window_rects(sc, win.size, [&](int k) {
-            const glm::vec3 p((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
-            return ch.position + glm::vec3(cy * p.x + sy * p.z, p.y, -sy * p.x + cy * p.z) - sc.ta;
-          });
+          const glm::vec3 lo = glm::min(b0[0], b1[0]), hi = glm::max(b0[1], b1[1]);  // model space
+          const ModelFrame mf = model_frame(sc, ch);
+          static constexpr glm::vec4 kIdentityRows[3] = {glm::vec4(1, 0, 0, 0), glm::vec4(0, 1, 0, 0), glm::vec4(0, 0, 1, 0)};
+          PlaneExtent pose;
+          add_carried_box(sc, mf, kIdentityRows, lo, hi, pose);
+          WindowRects r = window_rects(pose, win.size);
           if (parts.size() > 1) {
             // Tighter: the union of the body parts' boxes, each carried by its bone (a limb's
             // box lies along the limb), within the pose's box.
-            const glm::mat4 place = placement(ch);
-            glm::vec4 quad(1e30f, 1e30f, -1e30f, -1e30f), clear = quad;
+            PlaneExtent union_of_parts;
+            glm::vec4 rows[3];
             for (const BodyPart& bp : parts) {
-              const glm::mat4 bone = place * palette_matrix(pal, np, bc, f0, f1, blend, bp.bone);
-              const WindowRects rr = window_rects(sc, win.size, [&](int k) {
-                const glm::vec3 c((k & 1) ? bp.box_max.x : bp.box_min.x, (k & 2) ? bp.box_max.y : bp.box_min.y,
-                                  (k & 4) ? bp.box_max.z : bp.box_min.z);
-                return glm::vec3(bone * glm::vec4(c, 1.0f)) - sc.ta;
-              });
-              quad = rect_union(quad, rr.quad);
-              clear = rect_union(clear, rr.snapshot);
+              palette_rows(pal, np, bc, f0, f1, blend, bp.bone, rows);
+              add_carried_box(sc, mf, rows, bp.box_min, bp.box_max, union_of_parts);
             }
-            r.quad = rect_intersection(r.quad, quad);
-            r.snapshot = rect_intersection(r.snapshot, clear);
+            const WindowRects rr = window_rects(union_of_parts, win.size);
+            r.quad = rect_intersection(r.quad, rr.quad);
+            r.snapshot = rect_intersection(r.snapshot, rr.snapshot);
           }
           next.rect = r.quad;
           snap_rect = r.snapshot;
@@ -531,22 +626,26 @@ std::size_t FramePlanner::begin_frame(const Crowd& crowd, const SceneCamera& cam
   part_jobs_.clear();
   if (parts_ > 1) refreshed_.assign(n, 0);
 
-  // Crowds of kParallelCharacters and more (without part cards) are planned in chunks, each into
-  // its own lists, joined in crowd order by end_frame; characters whose atlas window must be
+  // Crowds of kParallelCharacters work and more (without part cards) are planned in chunks, each
+  // into its own lists, joined in crowd order by end_frame; characters whose atlas window must be
   // allocated or changed are then planned one by one in crowd order (the allocator is shared,
   // and its choices must not depend on the threads), after the others. So the plan is the same
-  // whatever the number of threads.
+  // whatever the number of threads: the work depends on the crowd and the frames before only.
   fr.chunks = 0;
-  if (parts_ == 1 && n >= kParallelCharacters) {
-    fr.chunks = std::min<std::size_t>(n / (kParallelCharacters / 4), 4 * std::size_t{max_useful_threads(n)});
+  fr.threads = 1;
+  fr.work = n + kRefreshWork * static_cast<std::size_t>(fs.impostor_mode ? last_snapshots_ : 0);
+  if (parts_ == 1 && fr.work >= kParallelCharacters && n > 0) {
+    // As many chunks whatever the work (its lists then stop growing once warm): four a thread of
+    // the pool, at least kCharactersPerChunk characters each.
+    fr.chunks = std::clamp<std::size_t>(n / kCharactersPerChunk, 1, 4 * std::size_t{planner_threads()});
     if (chunks_.size() < fr.chunks) chunks_.resize(fr.chunks);
   }
   return fr.chunks;
 }
 
-unsigned FramePlanner::max_useful_threads(std::size_t characters) {
+unsigned FramePlanner::max_useful_threads(std::size_t work) {
   // As many threads as the crowd keeps busy: a wake-up costs more than a few hundred characters.
-  return static_cast<unsigned>(std::clamp<std::size_t>(characters / kCharactersPerThread, 1, planner_threads()));
+  return static_cast<unsigned>(std::clamp<std::size_t>(work / kCharactersPerThread, 1, planner_threads()));
 }
 
 void FramePlanner::plan_chunk(std::size_t c) {
@@ -555,14 +654,16 @@ void FramePlanner::plan_chunk(std::size_t c) {
   const std::size_t n = crowd.size();
   const FrameSetup& fs = fr.setup;
   Chunk& k = chunks_[c];
-  k.clear(model_->lods.size());
+  const std::size_t first = n * c / fr.chunks, end = n * (c + 1) / fr.chunks;
+  k.clear(model_->lods.size(), end - first);
   const Out o{&k.geometry, &k.snapshots, &k.billboards, &k.pending, &k.st, &k.budget_used, &k.deferred};
-  for (std::size_t i = n * c / fr.chunks, e = n * (c + 1) / fr.chunks; i < e; ++i) plan_character(i, crowd[i], fs, o);
+  for (std::size_t i = first; i < end; ++i) plan_character(i, crowd[i], fs, o);
 }
 
 const FramePlan& FramePlanner::plan(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode) {
   const std::size_t chunks = begin_frame(crowd, camera, time, mode);
-  const unsigned used = chunks > 0 ? max_useful_threads(crowd.size()) : 1;
+  const unsigned used = chunks > 0 ? max_useful_threads(frame_.work) : 1;
+  frame_.threads = used;
   auto run_chunk = [this](std::size_t c) { plan_chunk(c); };
   if (used > 1) {
     pool_->run(chunks, run_chunk, used);
@@ -576,7 +677,7 @@ void FramePlanner::plan_many(std::span<FramePlanner* const> planners, std::span<
                              const SceneCamera& camera, float time, RenderMode mode) {
   assert(planners.size() == crowds.size());
   // Every planner's chunks in one call on the first planner's pool: one wake-up for all.
-  std::size_t total = 0, characters = 0;
+  std::size_t total = 0, work = 0;
   std::array<std::size_t, 65> first{};  // planners' first chunk in the joint numbering
   const std::size_t joint = std::min<std::size_t>(planners.size(), 64);
   for (std::size_t p = 0; p < planners.size(); ++p) {
@@ -584,7 +685,7 @@ void FramePlanner::plan_many(std::span<FramePlanner* const> planners, std::span<
     if (p < joint) {
       first[p] = total;
       total += c;
-      if (c > 0) characters += crowds[p]->size();
+      if (c > 0) work += planners[p]->frame_.work;
     } else {  // past 64 planners: on their own (a crowd of that many models plans them in turn)
       for (std::size_t k = 0; k < c; ++k) planners[p]->plan_chunk(k);
     }
@@ -596,7 +697,8 @@ void FramePlanner::plan_many(std::span<FramePlanner* const> planners, std::span<
       planners[p]->plan_chunk(g - first[p]);
     };
     FramePlanner& lead = *planners[0];
-    const unsigned used = lead.max_useful_threads(characters);
+    const unsigned used = lead.max_useful_threads(work);
+    for (std::size_t p = 0; p < joint; ++p) planners[p]->frame_.threads = first[p + 1] > first[p] ? used : 1;
     if (used > 1) {
       lead.pool_->run(total, run_chunk, used);
     } else {
@@ -651,7 +753,7 @@ const FramePlan& FramePlanner::end_frame() {
     if (chunks_.size() < chunks) chunks_.resize(chunks);
     auto run_chunk = [&](std::size_t c) {
       Chunk& k = chunks_[c];
-      k.clear(model_->lods.size());
+      k.clear(model_->lods.size(), take * (c + 1) / chunks - take * c / chunks);
       const Out o{&k.geometry, &k.snapshots, &k.billboards, nullptr, &k.st, &k.budget_used, nullptr, true};
       for (std::size_t j = take * c / chunks, e = take * (c + 1) / chunks; j < e; ++j)
         plan_character(pending_[j].order, crowd[pending_[j].order], fs, o);
@@ -703,7 +805,9 @@ const FramePlan& FramePlanner::end_frame() {
   st.atlas_pages_used = atlas_.pages_used();
   st.atlas_windows_used = atlas_.windows_used();
   st.atlas_pixel_use = atlas_.pixel_use();
+  st.planner_threads = static_cast<int>(fr.chunks > 0 ? fr.threads : 1);
   plan_.stats = st;
+  if (fs.impostor_mode) last_snapshots_ = st.snapshots;
   return plan_;
 }
 
@@ -792,11 +896,9 @@ FramePlanner::PartCache FramePlanner::part_card(const PartJob& job, const Charac
   glm::vec4 snap_rect = next.rect;
   if (config_.tight_quads) {
     // The part's box (palette space, over all frames).
-    const WindowRects rr = window_rects(cam, win.size, [&](int k) {
-      const glm::vec3 q((k & 1) ? bp.box_max.x : bp.box_min.x, (k & 2) ? bp.box_max.y : bp.box_min.y,
-                        (k & 4) ? bp.box_max.z : bp.box_min.z);
-      return glm::vec3(bone * glm::vec4(q, 1.0f)) - cam.ta;
-    });
+    PlaneExtent e;
+    add_placed_box(cam, bone, bp.box_min, bp.box_max, cam.ta, e);
+    const WindowRects rr = window_rects(e, win.size);
     next.rect = rr.quad;
     snap_rect = rr.snapshot;
   }

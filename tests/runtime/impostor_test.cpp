@@ -468,6 +468,47 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
   }
 }
 
+// A refresh costs about FramePlanner::kRefreshWork characters' planning, so a crowd too small
+// for threads by its size (the test bed's worst case: 250 characters a model, all refreshed every
+// frame) is planned on threads once a frame has refreshed it; and its plan is still the one a
+// single thread makes, windows changing size included (the camera comes closer).
+TEST(FramePlanner, CrowdsThatRefreshMuchArePlannedOnThreads) {
+  Model m = tiny_model();
+  Crowd crowd(m);
+  const int n = 250;
+  ASSERT_LT(static_cast<std::size_t>(n), FramePlanner::kParallelCharacters);
+  for (int i = 0; i < n; ++i)
+    crowd.add(Character{glm::vec3(1.5f * static_cast<float>(i % 25) - 18.0f, 0, -1.5f * static_cast<float>(i / 25)),
+                        0.1f * static_cast<float>(i % 7), 1.0f, 0, 0.013f * static_cast<float>(i), 1.0f});
+  ImpostorConfig cfg;
+  cfg.cache.posture_threshold = 0.0f;
+  cfg.cache.view_threshold_deg = 0.0f;
+  cfg.max_pages = 64;
+  cfg.planner_threads = 1;
+  FramePlanner one(m, cfg);
+  cfg.planner_threads = 3;
+  FramePlanner three(m, cfg);
+  int threaded = 0, changes = 0;
+  for (int f = 0; f < 8; ++f) {
+    SceneCamera cam = facing_camera(80.0f - 10.0f * static_cast<float>(std::min(f, 4)));
+    const float t = 0.04f * static_cast<float>(f);
+    SCOPED_TRACE(testing::Message() << "frame " << f);
+    const FramePlan& ref = one.plan(crowd, cam, t, RenderMode::kImpostor);
+    const FramePlan& p = three.plan(crowd, cam, t, RenderMode::kImpostor);
+    expect_same_plan(p, ref);
+    EXPECT_EQ(p.stats.window_refreshes, ref.stats.window_refreshes);
+    EXPECT_DOUBLE_EQ(p.stats.quad_texels, ref.stats.quad_texels);
+    EXPECT_EQ(ref.stats.planner_threads, 1);
+    EXPECT_EQ(ref.stats.snapshots, n - ref.stats.culled);  // every impostor refreshed
+    // The first frame knows of no refresh: 250 characters are one thread's work.
+    EXPECT_EQ(p.stats.planner_threads, f == 0 ? 1 : 3);
+    threaded += p.stats.planner_threads > 1;
+    changes += ref.stats.window_refreshes;
+  }
+  EXPECT_EQ(threaded, 7);
+  EXPECT_GT(changes, 0);
+}
+
 // FramePlanner::plan_many plans several models' crowds together; each plan must be the one
 // plan() makes: three crowds (parallel, parallel, serial sizes), frame after frame.
 TEST(FramePlanner, PlanManyMakesTheSamePlansAsPlan) {

@@ -308,6 +308,8 @@ struct FrameStats {
   double quad_texels = 0;              // window texels the impostor quads cover (their fill, in texels)
   int atlas_pages_used = 0, atlas_pages = 0, atlas_windows_used = 0;
   float atlas_pixel_use = 0;           // fraction of the used pages' pixels in windows
+  // Threads that planned the crowd (1: the calling thread alone; FramePlanner::kRefreshWork).
+  int planner_threads = 1;
 };
 
 // What to draw this frame. Geometry instances and snapshots are grouped by LOD level (a
@@ -324,10 +326,17 @@ class WorkerPool;
 
 class FramePlanner {
  public:
-  // Crowds from this size on are planned on ImpostorConfig::planner_threads threads.
+  // Crowds from this much work on are planned on ImpostorConfig::planner_threads threads, where a
+  // crowd's work is its size plus kRefreshWork for each impostor the previous frame refreshed (a
+  // refresh costs about that many characters' planning: its snapshot camera, window and tight
+  // quad; CesiumMan 0.77 us against 0.07-0.12 us). So the test bed's worst case, every
+  // character refreshed every frame, is planned on threads at 250 characters a model too.
   static constexpr std::size_t kParallelCharacters = 512;
-  // ... on one thread per this many characters at most (up to planner_threads).
+  static constexpr std::size_t kRefreshWork = 8;
+  // ... on one thread per this much work at most (up to planner_threads).
   static constexpr std::size_t kCharactersPerThread = 512;
+  // ... in chunks of at least this many characters (four chunks a thread of the pool).
+  static constexpr std::size_t kCharactersPerChunk = 32;
   // ... and stale impostors reached by the refresh budget on one thread per this many (a refresh
   // costs tens of times a character's planning).
   static constexpr std::size_t kForcedPerThread = 32;
@@ -459,12 +468,15 @@ class FramePlanner {
     std::vector<std::uint32_t> deferred;
     FrameStats st;
     int budget_used = 0;
-    void clear(std::size_t lods);
+    // Empties the lists for `characters` characters, each list holding room for all of them
+    // (which LOD or list a character takes changes from frame to frame: no allocation once warm;
+    // about 0.8 kB a character with four LODs).
+    void clear(std::size_t lods, std::size_t characters);
   };
   // Plans character i: culling, geometry LOD or impostor (cache tests, snapshot, card).
   void plan_character(std::size_t i, const Character& ch, const FrameSetup& fs, const Out& out);
   unsigned planner_threads();  // starts the pool when more than one thread is wanted
-  unsigned max_useful_threads(std::size_t characters);  // at most planner_threads()
+  unsigned max_useful_threads(std::size_t work);  // at most planner_threads()
   // A frame in three steps: begin_frame (serial; returns the number of chunks to plan, 0: the
   // crowd is planned serially by end_frame), plan_chunk for each (any thread, any order),
   // end_frame (joins the chunks, serves the budget, returns the plan).
@@ -478,6 +490,8 @@ class FramePlanner {
     FrameStats st;
     int budget_used = 0;
     std::size_t chunks = 0;
+    std::size_t work = 0;  // the crowd's size and the last frame's refreshes (kRefreshWork each)
+    unsigned threads = 1;  // that planned the chunks
   };
   Frame frame_;
   const Model* model_;
@@ -489,6 +503,7 @@ class FramePlanner {
   std::vector<PartJob> part_jobs_;
   std::vector<std::uint8_t> refreshed_;  // part cards: characters with a card refreshed this frame
   int budget_left_ = 0;  // CacheConfig::refresh_budget left in the frame being planned
+  int last_snapshots_ = 0;  // impostors refreshed by the last frame planned (Frame::work)
   AtlasAllocator atlas_;
   std::vector<CacheState> cache_;
   std::vector<PartCache> part_cache_;  // [character * parts + part] when part cards are on
