@@ -247,6 +247,13 @@ set_s34e() {
   done
   BB_NO_LAYERED_SNAPSHOTS=1 flow e_worst_h1000_pages $C4 --frames 30 --humans 1000 --posture 0 --view 0 --gpu-stages
   flow e_worst_h1000_t1 $C4 --frames 30 --humans 1000 --posture 0 --view 0 --planner-threads 1
+  # The binary before the change (bench_flow_prev, where carried) against this one, alternated.
+  if [ -x .gpu/bin/bench_flow_prev ]; then
+    for i in 1 2; do
+      B=.gpu/bin/bench_flow_prev flow e_prev_worst_h1000_$i $C4 --frames 30 --humans 1000 --posture 0 --view 0
+      flow e_new_worst_h1000_$i $C4 --frames 30 --humans 1000 --posture 0 --view 0
+    done
+  fi
   flow e_sweep_view_h1000 $C4 --frames 40 --humans 1000 --sweep view
   flow e_sweep_posture_h1000 $C4 --frames 40 --humans 1000 --sweep posture
   flow e_main $C4 --frames 120

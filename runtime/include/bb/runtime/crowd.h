@@ -173,9 +173,10 @@ struct ImpostorConfig {
   // and PSNR is 0.34 dB lower (23.57 against 23.91); with the poses held it is 0.4 dB higher.
   bool turn_limb_cards = false;
   // Threads that plan a frame (FramePlanner::plan), the calling thread included; 0: one per
-  // hardware thread. Crowds of at least FramePlanner::kParallelCharacters characters without part
-  // cards are planned in chunks on a pool of worker threads (started once, asleep between
-  // frames); the plan is the same whatever the number of threads. 1: on the calling thread only.
+  // hardware thread. Crowds of at least FramePlanner::kParallelCharacters units of work without
+  // part cards (a character is one, and each impostor the last frame refreshed kRefreshWork more)
+  // are planned in chunks on a pool of worker threads (started once, asleep between frames); the
+  // plan is the same whatever the number of threads. 1: on the calling thread only.
   unsigned planner_threads = 0;
   // Depth-corrected part cards (parallax): each card also carries its snapshot's eye (in the
   // card's frame) and the snapshot pass also writes each texel's offset from the card plane
