@@ -50,8 +50,9 @@ struct FlowSettings {
   float orbit_deg_per_s = 0.0f;  // camera orbit speed
   int quality_every = 4;         // compare images every k-th measured frame
   int msaa = 4;                  // samples per pixel of the scene window (the geometry path's target)
-  // Samples of the impostor path's target: 0 for runtime::impostor_target_samples (1 where the
-  // impostors' edges need no samples: the same frames, less to write), else this many.
+  // Samples of the impostor path's target: 0 auto (on a software rasterizer
+  // runtime::impostor_target_samples, 1 where the impostors' edges need no samples: the same
+  // frames, less to write; on a GPU the scene's), else this many.
   int impostor_target_samples = 0;
   // Impostor windows chosen for this many texels per pixel, and how impostor edges meet the
   // scene. The test bed's defaults are the fastest setting that keeps edges antialiased: 1 texel
@@ -79,9 +80,10 @@ struct FlowSettings {
   bool fit_quads = true;                    // ImpostorConfig::fit_quads_to_coverage
   bool time_stages = false;                 // GPU timestamps between the renderer's stages (gpu_ms_stages)
   int flush_every_indices = -1;             // DrawOptions::flush_every_indices (-1: auto, 0: never)
-  // ImpostorConfig::short_lived_as_geometry: -1 auto (on where msaa is 1: both targets are then
-  // single-sampled, so a character drawn as geometry there is the geometry's picture, and a
-  // snapshot costs what drawing the character does), 0 off (every refresh a snapshot), 1 on.
+  // ImpostorConfig::short_lived_as_geometry: -1 auto (on where the impostor target has the
+  // scene's samples, on a GPU or where msaa is 1: a character drawn as geometry there is the
+  // geometry's picture, and a snapshot costs what drawing the character does or more), 0 off
+  // (every refresh a snapshot), 1 on.
   int short_lived = -1;
   unsigned planner_threads = 0;             // ImpostorConfig::planner_threads (0: every hardware thread)
   runtime::WindowSizes windows;             // ImpostorConfig::windows (the runtime's default: 256 to 8)

@@ -171,17 +171,24 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
                        : s.impostor_edges == "samples" ? ImpostorEdges::kSamples
                        : s.impostor_edges == "centre"  ? ImpostorEdges::kCentre
                                                        : ImpostorEdges::kBlend;
-  // Impostor frames hold impostors only: blended edges need no multisampled target.
-  const int samples_i =
-      s.impostor_target_samples > 0 ? s.impostor_target_samples : impostor_target_samples(draw_options.edges, s.msaa);
-  // auto: in a single-sampled scene. There the impostor path's target is single-sampled too, so a
-  // character drawn as geometry in an impostor frame is the geometry path's own picture, and a
-  // snapshot costs what drawing the character does. In a multisampled scene the blended impostors'
-  // target is single-sampled (the character would lose its antialiasing), and with a multisampled
-  // impostor target (`--impostor-target scene`, edges other than blend) the single-sampled
-  // snapshot is the cheaper on llvmpipe (flow test bed, 4x, --impostor-target scene, both
-  // thresholds 0: 0.63 of the geometry's time with snapshots, 0.98-1.00 with geometry).
-  config.short_lived_as_geometry = s.short_lived > 0 || (s.short_lived < 0 && s.msaa == 1);
+  // auto: on a software rasterizer, impostor frames hold impostors only, and blended edges need no
+  // multisampled target. On a GPU, where multisampling costs little, the scene's samples: a
+  // character drawn as geometry in an impostor frame then keeps its antialiasing (below).
+  const bool software = software_rasterizer();
+  const int samples_i = s.impostor_target_samples > 0 ? s.impostor_target_samples
+                        : software                    ? impostor_target_samples(draw_options.edges, s.msaa)
+                                                      : s.msaa;
+  // auto: where the impostor target has the scene's samples, on a GPU or in a single-sampled
+  // scene. A character drawn as geometry in an impostor frame is then the geometry path's own
+  // picture, and a snapshot costs what drawing the character does or more: on the H200 the
+  // worst case (both thresholds 0, 4x) went from 0.45 / 0.56 / 0.65x of geometry's speed at 20 /
+  // 1,000 / 5,000 humans to 1.18 / 0.95 / 0.98x, the snapshot pass taking the GPU 1.5 times what
+  // the same triangles take in the scene. On llvmpipe a 4x scene's single-sampled snapshot is the
+  // cheaper (4x, --impostor-target scene, both thresholds 0: 0.63 of the geometry's time with
+  // snapshots, 0.98-1.00 with geometry), and the blended impostors' single-sampled target would
+  // give the character aliased edges.
+  config.short_lived_as_geometry =
+      s.short_lived > 0 || (s.short_lived < 0 && samples_i == s.msaa && (s.msaa == 1 || !software));
   out.short_lived_as_geometry = config.short_lived_as_geometry && s.refresh_budget == 0;
   // One renderer, planner and crowd per model; human i is of model i % models.size().
   std::vector<std::unique_ptr<Renderer>> renderers;

@@ -260,6 +260,34 @@ set_s34e() {
   flow e_sweep_view $C4 --frames 60 --sweep view
   flow e_scaling $C4 --frames 2 --gpu-stages --scaling --scaling-humans 20,100,1000,2000,5000,10000 --scaling-frames 8
 }
+# The worst case's remaining cost is the snapshot pass: characters refreshed in consecutive frames
+# drawn as geometry instead (--short-lived geometry), into the impostor-only single-sampled target
+# or into the scene's multisampled one (--impostor-target scene), and what the latter costs at the
+# paper's thresholds.
+set_s34f() {
+  local g="--impostor-target scene --short-lived geometry"
+  for n in 20 1000 5000; do
+    flow f_worst_h$n $C4 --frames 30 --humans $n --posture 0 --view 0
+    flow f_worst_scene_geo_h$n $C4 --frames 30 --humans $n --posture 0 --view 0 $g
+    flow f_worst_geo_h$n $C4 --frames 30 --humans $n --posture 0 --view 0 --short-lived geometry
+  done
+  flow f_sweep_view_scene_geo $C4 --frames 40 --sweep view $g
+  flow f_sweep_view_scene $C4 --frames 40 --sweep view --impostor-target scene
+  flow f_sweep_view_h1000_scene_geo $C4 --frames 30 --humans 1000 --sweep view $g
+  flow f_scaling_scene_geo $C4 --frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 8 $g
+  flow f_scaling $C4 --frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 8
+}
+# flow's auto settings on a GPU after that change (impostor target of the scene's samples,
+# short-lived snapshots as geometry): the worst case and the targets' runs with no flag.
+set_s34g() {
+  for n in 20 1000 5000; do flow g_worst_h$n $C4 --frames 30 --humans $n --posture 0 --view 0; done
+  flow g_main $C4 --frames 120
+  flow g_sweep_view $C4 --frames 60 --sweep view
+  flow g_sweep_view_h1000 $C4 --frames 40 --humans 1000 --sweep view
+  flow g_scaling $C4 --frames 2 --gpu-stages --scaling --scaling-humans 20,100,1000,2000,5000,10000 --scaling-frames 8
+  flow g_best_8 $C4 --frames 60 --view 8 --posture off --impostor-parts --texels-per-pixel 2 --impostor-edges blend --card-depth pass
+  flow g_sc_RiggedSimple --model $M/RiggedSimple.gltf --frames 2 --scaling --scaling-frames 16 --scaling-humans 1000,10000
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"

@@ -1045,8 +1045,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   if (Status st = shade_program(d.shade_geometry, std::string(kCommon) + kGeometryVs, kShadeFs, "geometry shader"); !st)
     return st.error();
   d.layered = has_gl_extension("GL_ARB_shader_viewport_layer_array") && !std::getenv("BB_NO_LAYERED_SNAPSHOTS");
-  if (const char* name = reinterpret_cast<const char*>(glGetString(GL_RENDERER)))
-    d.software = std::strstr(name, "llvmpipe") || std::strstr(name, "softpipe");
+  d.software = software_rasterizer();
   d.snapshot_samples = std::clamp(config.snapshot_samples, 1, 16);
   // Relit snapshots and depth-corrected cards write more targets beside the atlas: layered
   // snapshots with one sample per texel only.
@@ -1576,6 +1575,11 @@ double Renderer::drawn_quad_texels(const FramePlan& plan) const {
     if (r.z > r.x && r.w > r.y) texels += (r.z - r.x) * half * (r.w - r.y) * half;
   }
   return texels;
+}
+
+bool software_rasterizer() {
+  const char* name = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+  return name && (std::strstr(name, "llvmpipe") || std::strstr(name, "softpipe"));
 }
 
 int impostor_target_samples(ImpostorEdges edges, int scene_samples) {

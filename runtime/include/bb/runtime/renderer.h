@@ -55,6 +55,11 @@ enum class ImpostorEdges {
 // (flow test bed, 17 degrees: the impostor frame 25-30 % faster single-sampled, the Fox and ours).
 int impostor_target_samples(ImpostorEdges edges, int scene_samples);
 
+// Whether the current GL context renders in software (Mesa's llvmpipe or softpipe), where fill and
+// multisampling cost far more than on a GPU and the cheaper choice between a snapshot and geometry
+// differs (flow's `auto` settings). False without a current context.
+bool software_rasterizer();
+
 struct DrawOptions {
   bool draw_geometry = true;
   bool draw_impostors = true;
