@@ -54,6 +54,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["msaa"] = s.geometry ? r.geometry_target_samples : s.msaa;  // what the scene window has
   if (s.geometry && r.geometry_target_samples != s.msaa) j["msaa_asked"] = s.msaa;
   if (s.impostor) j["impostor_target_samples"] = r.impostor_target_samples;
+  if (s.impostor && r.impostor_target_adaptive) j["impostor_multisampled_frames"] = r.impostor_multisampled_frames;
   j["texels_per_pixel"] = s.texels_per_pixel;
   j["window_sizes"] = std::vector<int>(s.windows.size.begin(), s.windows.size.begin() + s.windows.count);
   auto r3 = [](float v) { return std::round(static_cast<double>(v) * 1000.0) / 1000.0; };
@@ -379,9 +380,13 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   s.screen_weighting_px = screen_weighting ? px : 0.0f;
   s.orbit_deg_per_s = a.orbit;
   s.msaa = a.msaa;
-  if (a.impostor_target != "auto" && a.impostor_target != "scene" && a.impostor_target != "single")
-    return fail("--impostor-target: expected auto, scene or single (got \"" + a.impostor_target + "\")");
-  s.impostor_target_samples = a.impostor_target == "scene" ? a.msaa : a.impostor_target == "single" ? 1 : 0;
+  if (a.impostor_target != "auto" && a.impostor_target != "scene" && a.impostor_target != "single" &&
+      a.impostor_target != "adaptive")
+    return fail("--impostor-target: expected auto, adaptive, scene or single (got \"" + a.impostor_target + "\")");
+  s.impostor_target_samples = a.impostor_target == "scene"      ? a.msaa
+                              : a.impostor_target == "single"   ? 1
+                              : a.impostor_target == "adaptive" ? -1
+                                                                : 0;
   // The crowd sizes of --scaling, checked before anything runs.
   auto scaling_list = parse_int_list(a.scaling_list, 1, 100000);
   if (!scaling_list)
@@ -752,7 +757,7 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--msaa", a->msaa, "Samples per pixel of the scene window (1: none); the impostor path's too where its edges need them (see --impostor-target)")
       ->capture_default_str()->check(CLI::IsMember({1, 2, 4, 8}));
   cmd->add_option("--impostor-target", a->impostor_target,
-                  "The impostor path's target: auto (on a software rasterizer such as llvmpipe, single-sampled where the edges blend: the same frames, less to write; on a GPU the scene's samples), scene (--msaa samples) or single (one sample)")
+                  "The impostor path's target: auto (single-sampled where the edges blend: the same frames, less to write; on a GPU adaptive), adaptive (that, and --msaa samples for a frame after one that drew a short-lived character as geometry, which then keeps its antialiasing; with it --short-lived auto draws them), scene (--msaa samples) or single (one sample)")
       ->capture_default_str();
   cmd->add_option("--texels-per-pixel", a->texels_per_pixel, "Impostor window texels per screen pixel")
       ->capture_default_str()->check(finite_number(0.25, 4.0));
@@ -812,7 +817,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "Flush the drawing to the GPU after every N indices drawn into a single-sampled target, geometry and snapshots alike: auto (every 10000 on a software rasterizer such as llvmpipe, which then rasterizes the first characters while it shades the next ones' vertices: in single-sampled geometry passes of 20000 and more and snapshot passes of 60000 and more; never on a GPU), off, or N (any pass)")
       ->capture_default_str();
   cmd->add_option("--short-lived", a->short_lived,
-                  "A character whose cache test fires again in the frame after its snapshot (a snapshot drawn once never pays): geometry (drawn as geometry until a frame passes without the test firing), snapshot (refreshed every time) or auto (geometry where the impostor target has the scene's samples, on a GPU or with --msaa 1: the character is then the geometry's own picture, and a snapshot costs what drawing it does or more; not with a refresh budget)")
+                  "A character whose cache test fires again in the frame after its snapshot (a snapshot drawn once never pays): geometry (drawn as geometry until a frame passes without the test firing), snapshot (refreshed every time) or auto (geometry where the character is then the geometry's own picture and a snapshot costs what drawing it does or more: with --msaa 1, with an adaptive impostor target, or on a GPU with the scene's samples; not with a refresh budget)")
       ->capture_default_str();
   cmd->add_option("--planner-threads", a->planner_threads,
                   "Most threads planning each frame (0: one per hardware thread). A crowd is planned on threads from 512 units of work, one thread per 512 at most: a character is one unit, and each impostor the previous frame refreshed eight more; the plan is the same")

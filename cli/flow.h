@@ -50,9 +50,10 @@ struct FlowSettings {
   float orbit_deg_per_s = 0.0f;  // camera orbit speed
   int quality_every = 4;         // compare images every k-th measured frame
   int msaa = 4;                  // samples per pixel of the scene window (the geometry path's target)
-  // Samples of the impostor path's target: 0 auto (on a software rasterizer
-  // runtime::impostor_target_samples, 1 where the impostors' edges need no samples: the same
-  // frames, less to write; on a GPU the scene's), else this many.
+  // Samples of the impostor path's target: 0 auto (runtime::impostor_target_samples, 1 where the
+  // impostors' edges need no samples: the same frames, less to write; on a GPU adaptive), -1
+  // adaptive (that, and the scene's samples for a frame after one that drew a short-lived
+  // character as geometry), else this many.
   int impostor_target_samples = 0;
   // Impostor windows chosen for this many texels per pixel, and how impostor edges meet the
   // scene. The test bed's defaults are the fastest setting that keeps edges antialiased: 1 texel
@@ -103,6 +104,10 @@ struct FlowResult {
   // Samples per pixel of each path's target as the driver gave them (llvmpipe: 1 or 4, whatever
   // --msaa asked).
   int geometry_target_samples = 0, impostor_target_samples = 0;
+  // --impostor-target adaptive (auto on a GPU): the impostor frames that followed one with a
+  // short-lived character drawn as geometry took a target of the scene's samples; their share.
+  bool impostor_target_adaptive = false;
+  double impostor_multisampled_frames = 0;
   double geometry_ms = 0, impostor_ms = 0;  // mean per frame
   // Spread of the per-frame times over the measured frames: 95th percentile, worst, and standard
   // deviation (ms). What a crowd-level refresh budget (CacheConfig::refresh_budget) flattens.

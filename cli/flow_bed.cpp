@@ -171,24 +171,26 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
                        : s.impostor_edges == "samples" ? ImpostorEdges::kSamples
                        : s.impostor_edges == "centre"  ? ImpostorEdges::kCentre
                                                        : ImpostorEdges::kBlend;
-  // auto: on a software rasterizer, impostor frames hold impostors only, and blended edges need no
-  // multisampled target. On a GPU, where multisampling costs little, the scene's samples: a
-  // character drawn as geometry in an impostor frame then keeps its antialiasing (below).
+  // Impostor frames hold impostors only, and blended edges need no multisampled target (auto on a
+  // software rasterizer). A character drawn as geometry in an impostor frame in place of a
+  // short-lived snapshot (below) needs the scene's samples to be the geometry path's own picture:
+  // adaptive (auto on a GPU) draws the impostor frame into a target of the scene's samples after a
+  // frame that drew such a character, else into the single-sampled one.
   const bool software = software_rasterizer();
-  const int samples_i = s.impostor_target_samples > 0 ? s.impostor_target_samples
-                        : software                    ? impostor_target_samples(draw_options.edges, s.msaa)
-                                                      : s.msaa;
-  // auto: where the impostor target has the scene's samples, on a GPU or in a single-sampled
-  // scene. A character drawn as geometry in an impostor frame is then the geometry path's own
-  // picture, and a snapshot costs what drawing the character does or more: on the H200 the
+  const int blend_samples = impostor_target_samples(draw_options.edges, s.msaa);
+  const bool adaptive =
+      blend_samples < s.msaa && (s.impostor_target_samples < 0 || (s.impostor_target_samples == 0 && !software));
+  const int samples_i = s.impostor_target_samples > 0 ? s.impostor_target_samples : blend_samples;
+  // auto: where a character drawn as geometry in an impostor frame is the geometry path's own
+  // picture (the impostor target has the scene's samples, or adaptive), and a snapshot costs what
+  // drawing the character does or more: in a single-sampled scene, and on a GPU. On the H200 the
   // worst case (both thresholds 0, 4x) went from 0.45 / 0.56 / 0.65x of geometry's speed at 20 /
-  // 1,000 / 5,000 humans to 1.18 / 0.95 / 0.98x, the snapshot pass taking the GPU 1.5 times what
+  // 1,000 / 5,000 humans to 1.19 / 0.95 / 0.98x, the snapshot pass taking the GPU 1.5 times what
   // the same triangles take in the scene. On llvmpipe a 4x scene's single-sampled snapshot is the
   // cheaper (4x, --impostor-target scene, both thresholds 0: 0.63 of the geometry's time with
-  // snapshots, 0.98-1.00 with geometry), and the blended impostors' single-sampled target would
-  // give the character aliased edges.
+  // snapshots, 0.98-1.00 with geometry).
   config.short_lived_as_geometry =
-      s.short_lived > 0 || (s.short_lived < 0 && samples_i == s.msaa && (s.msaa == 1 || !software));
+      s.short_lived > 0 || (s.short_lived < 0 && (adaptive || (samples_i == s.msaa && (s.msaa == 1 || !software))));
   out.short_lived_as_geometry = config.short_lived_as_geometry && s.refresh_budget == 0;
   // One renderer, planner and crowd per model; human i is of model i % models.size().
   std::vector<std::unique_ptr<Renderer>> renderers;
@@ -218,8 +220,17 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   if (!target_g) return target_g.error();
   auto target_i = OffscreenTarget::create(s.width, s.height, samples_i);
   if (!target_i) return target_i.error();
+  std::unique_ptr<OffscreenTarget> target_ims;  // adaptive: the scene's samples
+  if (adaptive) {
+    auto t = OffscreenTarget::create(s.width, s.height, s.msaa);
+    if (!t) return t.error();
+    target_ims = std::move(*t);
+  }
   out.geometry_target_samples = (*target_g)->samples();
   out.impostor_target_samples = (*target_i)->samples();
+  out.impostor_target_adaptive = adaptive;
+  int last_short_lived = 0;  // characters the last impostor frame drew as geometry (adaptive)
+  int multisampled_frames = 0;
 
   // The crowd: concentric circles, a few humans per circle, speeds 0.6 .. 1.8 m/s, alternate
   // directions. Circles are spaced so that neighbours do not collide.
@@ -410,8 +421,11 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
       if (compare || keep || stream) imgs.geometry = (*target_g)->read_rgba();
     }
     if (s.impostor) {
-      const FrameStats st = draw(**target_i, RenderMode::kImpostor, &ms);
+      OffscreenTarget& ti = adaptive && last_short_lived > 0 ? *target_ims : **target_i;
+      const FrameStats st = draw(ti, RenderMode::kImpostor, &ms);
+      last_short_lived = st.short_lived_geometry;
       if (measured) {
+        multisampled_frames += &ti == target_ims.get();
         i_ms += ms;
         i_times.push_back(ms);
         deferred += st.deferred_refreshes;
@@ -425,7 +439,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
         atlas_use += st.atlas_pixel_use;
         atlas_pages = std::max(atlas_pages, st.atlas_pages_used);
       }
-      if (compare || keep || stream) imgs.impostor = (*target_i)->read_rgba();
+      if (compare || keep || stream) imgs.impostor = ti.read_rgba();
       if (stream) imgs.refreshed = refreshed_boxes(plans, models, cam);
       if (compare) {  // after the timed frame: reads the fitted rectangles back
         for (int m = 0; m < nm; ++m) drawn_texels += renderers[m]->drawn_quad_texels(*plans[m]);
@@ -467,6 +481,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   out.impostor_ms = s.impostor ? i_ms / n : 0;
   out.ratio = (s.geometry && s.impostor && g_ms > 0) ? i_ms / g_ms : 0;
   out.refresh_fraction = s.impostor ? refresh / n : 0;
+  out.impostor_multisampled_frames = s.impostor ? static_cast<double>(multisampled_frames) / n : 0;
   out.psnr_db = compared ? psnr_sum / compared : 0;
   out.psnr_min_db = compared ? psnr_min : 0;
   out.ssim = compared ? ssim_sum / compared : 0;

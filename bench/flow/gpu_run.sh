@@ -288,6 +288,21 @@ set_s34g() {
   flow g_best_8 $C4 --frames 60 --view 8 --posture off --impostor-parts --texels-per-pixel 2 --impostor-edges blend --card-depth pass
   flow g_sc_RiggedSimple --model $M/RiggedSimple.gltf --frames 2 --scaling --scaling-frames 16 --scaling-humans 1000,10000
 }
+# What the scene's samples cost the impostor frame on a GPU: auto against --impostor-target single
+# (the default before), alternated.
+set_s34h() {
+  local sc="--frames 2 --scaling --scaling-frames 16 --gpu-stages"
+  for i in 1 2 3; do
+    flow h_auto_$i $C4 $sc --scaling-humans 10000
+    flow h_single_$i $C4 $sc --scaling-humans 10000 --impostor-target single
+  done
+  for i in 1 2; do
+    flow h_rs_auto_$i --model $M/RiggedSimple.gltf $sc --scaling-humans 10000
+    flow h_rs_single_$i --model $M/RiggedSimple.gltf $sc --scaling-humans 10000 --impostor-target single
+    flow h_view_auto_$i $C4 --frames 40 --humans 1000 --sweep view
+    flow h_view_single_$i $C4 --frames 40 --humans 1000 --sweep view --impostor-target single
+  done
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"

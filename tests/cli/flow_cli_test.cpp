@@ -330,6 +330,30 @@ TEST(FlowCli, ShortLivedSnapshotsBecomeGeometryAtOneSample) {
   auto j1s = nlohmann::json::parse(last_json_line(single.text));
   EXPECT_EQ(j1s["impostor_target_samples"], 1);
   EXPECT_EQ(j1s["short_lived"], "snapshot");
+  EXPECT_FALSE(j1s.contains("impostor_multisampled_frames"));
+  // Adaptive (auto on a GPU): single-sampled, and 4x after a frame that drew a character as
+  // geometry. With both thresholds 0 every character is geometry after the warm-up, so every
+  // measured frame is 4x and the impostor frames are the geometry frames.
+  Out adaptive = run(args + " --impostor-target adaptive");
+  ASSERT_EQ(adaptive.status, 0) << adaptive.text;
+  auto jad = nlohmann::json::parse(last_json_line(adaptive.text));
+  EXPECT_EQ(jad["impostor_target_samples"], 1);
+  EXPECT_EQ(jad["short_lived"], "geometry");
+  EXPECT_DOUBLE_EQ(jad["short_lived_geometry"].get<double>(), 1.0);
+  EXPECT_DOUBLE_EQ(jad["impostor_multisampled_frames"].get<double>(), 1.0);
+  EXPECT_DOUBLE_EQ(jad["psnr_db"].get<double>(), 99.0);
+  // At the paper's thresholds no character is short-lived here: every frame single-sampled, the
+  // frames those of --impostor-target single.
+  const std::string paper = "flow --model " + model + " --frames 4 --size 480x384 --json -o " + d.string();
+  Out pa = run(paper + " --impostor-target adaptive");
+  Out ps = run(paper + " --impostor-target single");
+  ASSERT_EQ(pa.status, 0) << pa.text;
+  ASSERT_EQ(ps.status, 0) << ps.text;
+  auto jpa = nlohmann::json::parse(last_json_line(pa.text));
+  auto jps = nlohmann::json::parse(last_json_line(ps.text));
+  EXPECT_DOUBLE_EQ(jpa["short_lived_geometry"].get<double>(), 0.0);
+  EXPECT_DOUBLE_EQ(jpa["impostor_multisampled_frames"].get<double>(), 0.0);
+  EXPECT_DOUBLE_EQ(jpa["psnr_db"].get<double>(), jps["psnr_db"].get<double>());
 }
 
 // Impostor frames hold impostors only. With blended edges (the default) every sample of a pixel
@@ -348,7 +372,8 @@ TEST(FlowCli, ImpostorFramesNeedNoMultisampledTargetWhenBlended) {
     GTEST_SKIP() << "no headless OpenGL: " << automatic.text;
   ASSERT_EQ(automatic.status, 0) << automatic.text;
   auto ja = nlohmann::json::parse(last_json_line(automatic.text));
-  EXPECT_EQ(ja["impostor_target_samples"], software_rasterizer(ja) ? 1 : 4);
+  EXPECT_EQ(ja["impostor_target_samples"], 1);
+  EXPECT_EQ(ja.contains("impostor_multisampled_frames"), !software_rasterizer(ja));  // adaptive on a GPU
   Out single = run(args + " --frames 8 --impostor-target single");
   ASSERT_EQ(single.status, 0) << single.text;
   Out scene = run(args + " --frames 8 --impostor-target scene --short-lived snapshot");
