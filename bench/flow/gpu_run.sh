@@ -303,6 +303,17 @@ set_s34h() {
     flow h_view_single_$i $C4 --frames 40 --humans 1000 --sweep view --impostor-target single
   done
 }
+# The adaptive impostor target (auto on a GPU): the worst case, and the paper's thresholds against
+# --impostor-target single.
+set_s34i() {
+  for n in 20 1000 5000; do flow i_worst_h$n $C4 --frames 30 --humans $n --posture 0 --view 0; done
+  for i in 1 2; do
+    flow i_view_auto_$i $C4 --frames 40 --humans 1000 --sweep view
+    flow i_view_single_$i $C4 --frames 40 --humans 1000 --sweep view --impostor-target single
+  done
+  flow i_main $C4 --frames 120
+  flow i_scaling $C4 --frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 16
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"
