@@ -1066,9 +1066,13 @@ TEST(BodyParts, WholeImpostorQuadHoldsTheSkinInsideThePoseBox) {
   cam.eye = {6, 5, 8};
   cam.target = {0, 1, 0};
   const float t = 0.5f;  // the arm bent 45 degrees
+  // At the origin, and moved and scaled (the parts' boxes are taken into the snapshot camera's
+  // frame through the character's placement).
+  for (const auto& [position, scale] : {std::pair{glm::vec3(0.0f), 1.0f}, std::pair{glm::vec3(2.0f, 0.0f, -1.0f), 1.3f}}) {
+  SCOPED_TRACE(testing::Message() << "scale " << scale);
   auto quad = [&](const Model& model, double* texels) {
     Crowd crowd(model);
-    crowd.add(Character{glm::vec3(0), 0.3f, 1.0f, 0, 0.0f, 1.0f});
+    crowd.add(Character{position, 0.3f, scale, 0, 0.0f, 1.0f});
     ImpostorConfig cfg;
     FramePlanner planner(model, cfg);
     const FramePlan& p = planner.plan(crowd, cam, t, RenderMode::kImpostor);
@@ -1090,7 +1094,7 @@ TEST(BodyParts, WholeImpostorQuadHoldsTheSkinInsideThePoseBox) {
   sample_clip(m, 0, t, locals);
   world_matrices(m, locals, world);
   palette_matrices(m, world, pal);
-  const glm::mat4 place = glm::rotate(glm::mat4(1), 0.3f, glm::vec3(0, 1, 0));
+  const glm::mat4 place = glm::scale(glm::rotate(glm::translate(glm::mat4(1), position), 0.3f, glm::vec3(0, 1, 0)), glm::vec3(scale));
   const glm::vec3 ta(bp.ta_half);
   const float half = bp.ta_half.w;
   const glm::vec3 vo = glm::normalize(ta - cam.eye), ho = glm::normalize(glm::cross(vo, cam.up)),
@@ -1104,6 +1108,7 @@ TEST(BodyParts, WholeImpostorQuadHoldsTheSkinInsideThePoseBox) {
     EXPECT_LE(c.x, bp.rect.z);
     EXPECT_GE(c.y, bp.rect.y);
     EXPECT_LE(c.y, bp.rect.w);
+  }
   }
 }
 
