@@ -2,7 +2,10 @@
 # The flow test bed on a lent NVIDIA machine (the device tool): the runtime-only bench_flow with
 # the same flags as `bodybuilder flow`. Prepare here (see docs/results.md, "NVIDIA H100"):
 #   .gl/  the GL loader packages (libegl1 libglvnd0 libopengl0 libgl1 libglx0 ...), .deb files
-#   .gpu/bin/bench_flow, .gpu/lib/{libtinygltf.so.2d,libstb.so.0}, .gpu/models/{default,CesiumMan,Fox}.glb
+#   .gpu/bin/bench_flow, .gpu/lib/ (the libraries `ldd build/bin/bench_flow` names beside libc, libm,
+#   libstdc++, libgcc_s and the GL loaders: libtinygltf.so.2d, libmeshoptimizer.so.2d, libwebp.so.7,
+#   libstb.so.0), .gpu/models/ (the default crowd below, and CesiumMan.glb, Fox.glb, RiggedSimple.gltf,
+#   SimpleSkin.gltf copied from ../shared/data/gltf)
 # and run `bash bench/flow/gpu_run.sh SET...` with .gl and .gpu carried; results go to $OUT.
 set -uo pipefail
 if command -v nvidia-smi >/dev/null; then  # only there: the loaders go into /
