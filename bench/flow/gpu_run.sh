@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The flow test bed on a lent NVIDIA machine (the device tool): the runtime-only bench_flow with
-# the same flags as `bodybuilder flow`. Prepare here (see docs/results.md, "NVIDIA H100"):
+# the same flags as `bodybuilder flow`. Prepare here with `bash bench/flow/gpu_prepare.sh`, which makes:
 #   .gl/  the GL loader packages (libegl1 libglvnd0 libopengl0 libgl1 libglx0 ...), .deb files
 #   .gpu/bin/bench_flow, .gpu/lib/ (the libraries `ldd build/bin/bench_flow` names beside libc, libm,
 #   libstdc++, libgcc_s and the GL loaders: libtinygltf.so.2d, libmeshoptimizer.so.2d, libwebp.so.7,
