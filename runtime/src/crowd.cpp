@@ -33,11 +33,9 @@ struct PlaneExtent {
   glm::vec2 lo{1e30f}, hi{-1e30f};
 };
 
-// Adds the box centre ± axes[0] ± axes[1] ± axes[2] (offsets from the snapshot's centre, world
-// metres; `axes` the half edges) to `e`. The centre and axes are projected once and the corners
-// summed in the camera's frame: the refresh of a character with part-tight quads projects one
-// box per body part (the worst case of the test bed: 1,000 refreshes a frame).
-// add_box with the centre c and axes a0, a1, a2 already in the camera's frame (Ho, Uo, Vo).
+// add_box with the centre c and half edges a0, a1, a2 already in the camera's frame (Ho, Uo, Vo).
+// The corners are summed there: the refresh of a character with part-tight quads projects one box
+// per body part (the worst case of the test bed: 1,000 refreshes a frame).
 void add_framed_box(const SnapshotCamera& cam, const glm::vec3& c, const glm::vec3& a0, const glm::vec3& a1,
                     const glm::vec3& a2, PlaneExtent& e) {
   const float inv_half = 1.0f / cam.half_size;
@@ -74,6 +72,8 @@ void add_framed_box(const SnapshotCamera& cam, const glm::vec3& c, const glm::ve
   e.hi = glm::max(e.hi, glm::vec2(x1, y1));
 }
 
+// Adds the box centre ± axes[0] ± axes[1] ± axes[2] (offsets from the snapshot's centre, world
+// metres; `axes` the half edges) to `e`, the centre and axes projected once.
 void add_box(const SnapshotCamera& cam, const glm::vec3& centre, const glm::mat3& axes, PlaneExtent& e) {
   auto frame = [&cam](const glm::vec3& v) { return glm::vec3(glm::dot(v, cam.ho), glm::dot(v, cam.uo), glm::dot(v, cam.vo)); };
   add_framed_box(cam, frame(centre), frame(axes[0]), frame(axes[1]), frame(axes[2]), e);
