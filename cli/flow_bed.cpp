@@ -185,7 +185,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   // picture (the impostor target has the scene's samples, or adaptive), and a snapshot costs what
   // drawing the character does or more: in a single-sampled scene, and on a GPU. On the H200 the
   // worst case (both thresholds 0, 4x) went from 0.45 / 0.56 / 0.65x of geometry's speed at 20 /
-  // 1,000 / 5,000 humans to 1.19 / 0.95 / 0.98x, the snapshot pass taking the GPU 1.5 times what
+  // 1,000 / 5,000 humans to 1.03 / 0.95 / 0.96x adaptive, the snapshot pass taking the GPU 1.5 times what
   // the same triangles take in the scene. On llvmpipe a 4x scene's single-sampled snapshot is the
   // cheaper (4x, --impostor-target scene, both thresholds 0: 0.63 of the geometry's time with
   // snapshots, 0.98-1.00 with geometry).
