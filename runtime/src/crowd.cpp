@@ -458,7 +458,8 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
           const float thr = std::min(glm::radians(cc.view_threshold_deg) * w, 3.14159265f);
           const float cthr = w == 1.0f ? cos_view : std::cos(thr);
           const float c = rotation_cosine(cs.view, view);
-          if (c < cthr) {
+          // A threshold of 0 refreshes on any turn: a slow turn's cosine rounds to 1 in floats.
+          if (c < cthr || (thr <= 0.0f && cs.view != view)) {
             refresh = true;
             ++st.view_refreshes;
             if (budget) staleness = std::acos(std::clamp(c, -1.0f, 1.0f)) / std::max(thr, 1e-6f);
@@ -1039,7 +1040,9 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
       const glm::vec3 los = glm::normalize(centre[p] - camera.eye);
       float c = glm::dot(n, los);
       if (lead) c = std::min(c, glm::dot(turn[p] * glm::normalize(glm::mat3(bone[p]) * pcs[p].normal), los));
-      if (c < cthr) {
+      // Threshold 0: any turn, as the sine measures it (a cosine rounds to 1 below 3e-4 radians),
+      // above the 1e-6 radians that carrying the card's normal by its bone rounds to.
+      if (c < cthr || (vthr <= 0.0f && glm::length(glm::cross(n, los)) > 1e-6f)) {
         by_view |= !due[p];
         due[p] = true;
         staleness[p] = std::max(staleness[p], std::acos(std::clamp(c, -1.0f, 1.0f)) / std::max(vthr, 1e-6f));

@@ -398,6 +398,27 @@ void expect_same_plan(const FramePlan& p, const FramePlan& ref) {
   EXPECT_EQ(p.stats.deferred_refreshes, ref.stats.deferred_refreshes);
 }
 
+// A view threshold of 0 refreshes every impostor that turned at all, even by less than a float
+// cosine shows (the paper's worst case: every character refreshed every frame). A turn of 1e-4
+// radians a frame has a cosine of 1 - 5e-9, which rounds to 1; a character that does not turn is
+// not refreshed.
+TEST(FramePlanner, ViewThresholdZeroRefreshesAnyTurn) {
+  Model m = tiny_model();
+  Crowd crowd = standing_row(m, 3, 3.0f);
+  ASSERT_EQ(std::cos(1e-4f), 1.0f);
+  FramePlanner planner(m, view_test_only(0.0f));
+  const SceneCamera cam = facing_camera(20.0f);
+  planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+  for (int f = 1; f <= 5; ++f) {
+    crowd[0].yaw += 1e-4f;  // turns a little
+    crowd[1].yaw -= 1e-4f;
+    const FramePlan& p = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);  // the pose held
+    EXPECT_EQ(p.stats.impostors, 3) << "frame " << f;
+    EXPECT_EQ(p.stats.view_refreshes, 2) << "frame " << f;
+    EXPECT_EQ(p.stats.snapshots, 2) << "frame " << f;
+  }
+}
+
 // Crowds of FramePlanner::kParallelCharacters and more are planned on a pool of threads; the
 // plan must not depend on how many: same draws, same order, same counts, frame after frame, while
 // characters animate, turn, change window size (the camera comes closer) and wait on a budget.
@@ -1109,6 +1130,29 @@ TEST(BodyParts, WholeImpostorQuadHoldsTheSkinInsideThePoseBox) {
     EXPECT_GE(c.y, bp.rect.y);
     EXPECT_LE(c.y, bp.rect.w);
   }
+  }
+}
+
+// Part cards too: with a view threshold of 0 every card of a character that turned at all is
+// refreshed, the turn's cosine rounding to 1 or not (FramePlanner.ViewThresholdZeroRefreshesAnyTurn).
+TEST(BodyParts, ViewThresholdZeroRefreshesAnyTurn) {
+  Model m = pole_model();
+  Crowd crowd(m);
+  for (int i = 0; i < 2; ++i) crowd.add(Character{glm::vec3(3.0f * i - 1.5f, 0, 0), 0.0f, 1.0f, 0, 0.0f, 0.0f});
+  ImpostorConfig cfg;
+  cfg.part_cards = true;
+  cfg.lead_cards = false;
+  cfg.cache.posture_test = false;
+  cfg.cache.view_threshold_deg = 0.0f;
+  FramePlanner planner(m, cfg);
+  const SceneCamera cam = facing_camera(30.0f);
+  EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.part_snapshots, 4);
+  for (int f = 1; f <= 5; ++f) {
+    crowd[0].yaw += 1e-4f;  // cos(1e-4) rounds to 1
+    const FrameStats st = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+    EXPECT_EQ(st.part_cards, 4) << "frame " << f;
+    EXPECT_EQ(st.part_snapshots, 2) << "frame " << f;  // the turning one's two cards
+    EXPECT_EQ(st.snapshots, 1) << "frame " << f;
   }
 }
 
