@@ -96,10 +96,12 @@ inline float rotation_cosine(const glm::mat3& a, const glm::mat3& b) {
 // Section 5: when a snapshot is stale.
 struct CacheConfig {
   bool posture_test = true;
-  // Relative change of any of the four squared joint-pair distances (0.4 = 40 %).
+  // Relative change of any of the four squared joint-pair distances (0.4 = 40 %; 0: any change).
   float posture_threshold = 0.4f;
   bool view_test = true;
-  float view_threshold_deg = 8.0f;  // degrees
+  // Degrees. 0 refreshes on any turn, also one too small for its cosine to show in floats (below
+  // 3e-4 radians); part cards: any turn above the 1e-6 radians their carried normals round to.
+  float view_threshold_deg = 8.0f;
   // Optional distance weighting of both thresholds (the paper's): threshold * max(1, distance /
   // reference_distance).
   bool distance_weighting = false;
