@@ -718,8 +718,14 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     std::printf("flow: %d humans, %d frames, %dx%d, %s\n", s.humans, s.frames, s.width, s.height, device.c_str());
     if (s.geometry) std::printf("  geometry   %8.2f ms/frame\n", result->geometry_ms);
     if (s.impostor)
-      std::printf("  impostors  %8.2f ms/frame  (95th percentile %.2f ms; refresh fraction %.3f, at most %d in a frame)\n",
+      std::printf("  impostors  %8.2f ms/frame  (95th percentile %.2f ms; refresh fraction %.3f, at most %d snapshots in a frame)\n",
                   result->impostor_ms, result->impostor_spread.p95, result->refresh_fraction, result->snapshots_max);
+    if (s.impostor && result->short_lived_geometry > 0)
+      std::printf("             %.1f %% of the characters drawn as geometry in place of snapshots that would live one frame%s\n",
+                  100.0 * result->short_lived_geometry,
+                  result->impostor_target_adaptive
+                      ? (", in a target of the scene's samples in " + std::to_string(static_cast<int>(std::lround(100.0 * result->impostor_multisampled_frames))) + " % of the frames").c_str()
+                      : "");
     if (s.geometry && s.impostor)
       std::printf("  ratio      %8.3f  (speed-up %.2fx), PSNR %.1f dB, SSIM %.3f\n", result->ratio,
                   result->ratio > 0 ? 1 / result->ratio : 0, result->psnr_db, result->ssim);
