@@ -826,7 +826,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "A character whose cache test fires again in the frame after its snapshot (a snapshot drawn once never pays): geometry (drawn as geometry until a frame passes without the test firing), snapshot (refreshed every time) or auto (geometry where the character is then the geometry's own picture and a snapshot costs what drawing it does or more: with --msaa 1, with an adaptive impostor target, or on a GPU with the scene's samples; not with a refresh budget)")
       ->capture_default_str();
   cmd->add_option("--planner-threads", a->planner_threads,
-                  "Most threads planning each frame (0: one per hardware thread). A crowd is planned on threads from 512 units of work, one thread per 512 at most: a character is one unit, and each impostor the previous frame refreshed eight more; the plan is the same")
+                  "Most threads planning each frame (0: one per hardware thread). A crowd is planned on threads from 512 units of work, one thread per 512 at most: a character is one unit (with part cards one a card), and each impostor the previous frame refreshed eight more; the plan is the same")
       ->capture_default_str();
   cmd->add_flag("--gpu-stages", a->gpu_stages,
                 "Also time the renderer's stages on the GPU (snapshots, coverage, geometry, impostors; gpu_ms_stages in the report; on llvmpipe the timestamps serialise the stages and slow the frame)");

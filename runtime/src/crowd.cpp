@@ -301,23 +301,24 @@ BakedFrames baked_frames(const Model& m, const Character& ch, float time) {
 
 }  // namespace
 
-void FramePlanner::Chunk::clear(std::size_t lods, std::size_t characters) {
+void FramePlanner::Chunk::clear(std::size_t lods, std::size_t characters, std::size_t cards) {
   geometry.resize(lods);
-  snapshots.resize(lods);
   for (auto& g : geometry) {
     g.clear();
     g.reserve(characters);
   }
-  for (auto& v : snapshots) {
-    v.clear();
-    v.reserve(characters);
-  }
+  snapshots.clear();
+  snapshots.reserve(cards);
+  snapshot_lods.clear();
+  snapshot_lods.reserve(cards);
   billboards.clear();
-  billboards.reserve(characters);
+  billboards.reserve(cards);
   pending.clear();
   pending.reserve(characters);
   deferred.clear();
   deferred.reserve(characters);
+  pending_parts.clear();
+  part_jobs.clear();
   st = FrameStats{};
   budget_used = 0;
 }
@@ -405,7 +406,9 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
   };
   bool as_geometry = !impostor_mode || (mode == RenderMode::kAuto && pixels > switch_px);
   if (!as_geometry && parts_ > 1) {
-    as_geometry = !plan_parts(i, ch, bc, f0, f1, blend, inst, ta, radius, pixels, camera, time, st);
+    const PartsPlanned planned = plan_parts(i, ch, bc, f0, f1, blend, inst, ta, radius, pixels, camera, time, out);
+    if (planned == PartsPlanned::kDeferred) return;
+    as_geometry = planned == PartsPlanned::kGeometry;
   } else if (!as_geometry) {
     CacheState& cs = cache_[i];
     // Aligned snapshots hold the sphere's whole picture (wider off the axis) at the exact scale.
@@ -543,7 +546,7 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
                                                           : window_lod[win.size_class];
         const float tpp = window_texels_per_pixel(win.size, sc.half_size, depth, ppm1);
         cs = next;
-        (*out.snapshots)[slod].push_back(
+        out.snapshots.add(slod,
             snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect, slot, next.fitted, tpp));
         ++st.snapshots;
         st.snapshot_triangles += m.lods[slod].triangle_count();
@@ -634,8 +637,9 @@ std::size_t FramePlanner::begin_frame(const Crowd& crowd, const SceneCamera& cam
   // whatever the number of threads: the work depends on the crowd and the frames before only.
   fr.chunks = 0;
   fr.threads = 1;
-  fr.work = n + kRefreshWork * static_cast<std::size_t>(fs.impostor_mode ? last_snapshots_ : 0);
-  if (parts_ == 1 && fr.work >= kParallelCharacters && n > 0) {
+  // Part cards: a character is a unit of work per card (each card is tested every frame).
+  fr.work = n * static_cast<std::size_t>(parts_) + kRefreshWork * static_cast<std::size_t>(fs.impostor_mode ? last_snapshots_ : 0);
+  if (fr.work >= kParallelCharacters && n > 0) {
     // As many chunks whatever the work (its lists then stop growing once warm): four a thread of
     // the pool, at least kCharactersPerChunk characters each.
     fr.chunks = std::clamp<std::size_t>(n / kCharactersPerChunk, 1, 4 * std::size_t{planner_threads()});
@@ -656,8 +660,9 @@ void FramePlanner::plan_chunk(std::size_t c) {
   const FrameSetup& fs = fr.setup;
   Chunk& k = chunks_[c];
   const std::size_t first = n * c / fr.chunks, end = n * (c + 1) / fr.chunks;
-  k.clear(model_->lods.size(), end - first);
-  const Out o{&k.geometry, &k.snapshots, &k.billboards, &k.pending, &k.st, &k.budget_used, &k.deferred};
+  k.clear(model_->lods.size(), end - first, (end - first) * static_cast<std::size_t>(parts_));
+  const Out o{&k.geometry,    k.sink(),    &k.billboards, &k.pending,       &k.st,
+              &k.budget_used, &k.deferred, false,          &k.pending_parts, &k.part_jobs};
   for (std::size_t i = first; i < end; ++i) plan_character(i, crowd[i], fs, o);
 }
 
@@ -716,21 +721,28 @@ const FramePlan& FramePlanner::end_frame() {
   const FrameSetup& fs = fr.setup;
   FrameStats& st = fr.st;
   int& budget_used = fr.budget_used;
-  const Out serial{&plan_.geometry, &plan_.snapshots, &plan_.billboards, &pending_, &st, &budget_used, nullptr};
+  const Out serial{&plan_.geometry, SnapshotSink{&plan_.snapshots}, &plan_.billboards, &pending_,       &st,
+                   &budget_used,    nullptr,                         false,             &pending_parts_, &part_jobs_};
   if (fr.chunks > 0) {
     const std::size_t chunks = fr.chunks;
     for (std::size_t c = 0; c < chunks; ++c) {
       Chunk& k = chunks_[c];
       const auto base = static_cast<std::uint32_t>(plan_.billboards.size());
-      for (std::size_t l = 0; l < plan_.geometry.size(); ++l) {
+      for (std::size_t l = 0; l < plan_.geometry.size(); ++l)
         plan_.geometry[l].insert(plan_.geometry[l].end(), k.geometry[l].begin(), k.geometry[l].end());
-        plan_.snapshots[l].insert(plan_.snapshots[l].end(), k.snapshots[l].begin(), k.snapshots[l].end());
-      }
+      k.join_snapshots(plan_.snapshots);
       plan_.billboards.insert(plan_.billboards.end(), k.billboards.begin(), k.billboards.end());
       for (PendingRefresh& r : k.pending) {
         r.billboard += base;
         pending_.push_back(r);
       }
+      const auto job_base = static_cast<std::uint32_t>(part_jobs_.size());
+      for (PendingPart& r : k.pending_parts) {
+        r.billboard += base;
+        r.job += job_base;
+        pending_parts_.push_back(r);
+      }
+      part_jobs_.insert(part_jobs_.end(), k.part_jobs.begin(), k.part_jobs.end());
       add_stats(st, k.st);
       budget_used += k.budget_used;
     }
@@ -754,8 +766,8 @@ const FramePlan& FramePlanner::end_frame() {
     if (chunks_.size() < chunks) chunks_.resize(chunks);
     auto run_chunk = [&](std::size_t c) {
       Chunk& k = chunks_[c];
-      k.clear(model_->lods.size(), take * (c + 1) / chunks - take * c / chunks);
-      const Out o{&k.geometry, &k.snapshots, &k.billboards, nullptr, &k.st, &k.budget_used, nullptr, true};
+      k.clear(model_->lods.size(), take * (c + 1) / chunks - take * c / chunks, take * (c + 1) / chunks - take * c / chunks);
+      const Out o{&k.geometry, k.sink(), &k.billboards, nullptr, &k.st, &k.budget_used, nullptr, true};
       for (std::size_t j = take * c / chunks, e = take * (c + 1) / chunks; j < e; ++j)
         plan_character(pending_[j].order, crowd[pending_[j].order], fs, o);
     };
@@ -769,8 +781,7 @@ const FramePlan& FramePlanner::end_frame() {
       const std::size_t first = take * c / chunks;
       assert(k.billboards.size() == take * (c + 1) / chunks - first && k.st.snapshots == static_cast<int>(k.billboards.size()));
       for (std::size_t j = 0; j < k.billboards.size(); ++j) plan_.billboards[pending_[first + j].billboard] = k.billboards[j];
-      for (std::size_t l = 0; l < plan_.snapshots.size(); ++l)
-        plan_.snapshots[l].insert(plan_.snapshots[l].end(), k.snapshots[l].begin(), k.snapshots[l].end());
+      k.join_snapshots(plan_.snapshots);
       st.quad_texels += k.st.quad_texels;
       st.snapshots += k.st.snapshots;
       st.snapshot_triangles += k.st.snapshot_triangles;
@@ -926,10 +937,12 @@ BillboardGpu FramePlanner::part_billboard(const PartCache& c, const glm::mat4& b
                       c.snap};
 }
 
-bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedClip& bc, int f0, int f1, float blend,
-                              const InstanceGpu& inst, const glm::vec3& ta, float radius, float pixels,
-                              const SceneCamera& camera, float time, FrameStats& st) {
+FramePlanner::PartsPlanned FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedClip& bc, int f0,
+                                                    int f1, float blend, const InstanceGpu& inst, const glm::vec3& ta,
+                                                    float radius, float pixels, const SceneCamera& camera, float time,
+                                                    const Out& out) {
   (void)radius;
+  FrameStats& st = *out.st;
   const Model& m = *model_;
   const auto parts = m.body_parts();
   const int np = static_cast<int>(m.palette.size());
@@ -953,9 +966,8 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
     turns[p] = config_.turn_limb_cards && parts[p].elongation >= kLimbElongation && parts[p].flatness <= kLimbFlatness;
     turn[p] = glm::mat3(1.0f);
   }
-  const bool all = !cs.valid;
-  if (all) ++st.new_snapshots;
-  bool window_change = false;
+  std::array<int, kMaxBodyParts> wclass;
+  bool allocates = false;  // a card's window must be allocated or change size class
   for (int p = 0; p < count; ++p) {
     bone[p] = place * palette_matrix(pal, np, bc, f0, f1, blend, parts[p].bone);
     centre[p] = glm::vec3(bone[p] * glm::vec4(parts[p].centre, 1.0f));
@@ -965,17 +977,28 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
       const float a = aligned_pixels(camera, centre[p], parts[p].radius * sc);
       if (std::isfinite(a)) px = a;
     }
-    const int wclass = choose_window(config_.windows, std::max(px * config_.texels_per_pixel,
-                                                               static_cast<float>(config_.smallest_part_window)));
+    wclass[p] = choose_window(config_.windows, std::max(px * config_.texels_per_pixel,
+                                                        static_cast<float>(config_.smallest_part_window)));
+    allocates |= !pcs[p].window.valid() || pcs[p].window.size_class != wclass[p];
+  }
+  if (allocates && out.deferred) {  // the atlas is served in crowd order, after the parallel pass
+    out.deferred->push_back(static_cast<std::uint32_t>(i));
+    return PartsPlanned::kDeferred;
+  }
+  const bool all = !cs.valid;
+  if (all) ++st.new_snapshots;
+  bool window_change = false;
+  for (int p = 0; p < count; ++p) {
     PartCache& pc = pcs[p];
+    const int wclass_p = wclass[p];
     due[p] = all;
-    if (pc.window.valid() && pc.window.size_class != wclass) {
+    if (pc.window.valid() && pc.window.size_class != wclass_p) {
       atlas_.release(pc.window);
       pc.window = AtlasWindow{};
       window_change = true;
     }
     if (!pc.window.valid()) {
-      auto w = atlas_.allocate(wclass);
+      auto w = atlas_.allocate(wclass_p);
       if (!w) {
         for (int q = 0; q < count; ++q)
           if (pcs[q].window.valid()) {
@@ -984,7 +1007,7 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
           }
         ++st.atlas_fallbacks;
         cs.valid = false;
-        return false;
+        return PartsPlanned::kGeometry;
       }
       pc.window = *w;
       due[p] = true;
@@ -1065,7 +1088,7 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
       }
       cs.picture_behind = true;
       ++st.short_lived_geometry;
-      return false;
+      return PartsPlanned::kGeometry;
     }
   }
   if (cs.picture_behind) {  // the windows hold older pictures
@@ -1093,23 +1116,23 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
       if (budget && !must[p]) {
         // Stale: its old card is drawn; the budget may reach it in end_frame, which works its
         // card out then (most stale cards wait).
-        pending_parts_.push_back(PendingPart{staleness[p], static_cast<std::uint32_t>(i * parts_ + p),
-                                             static_cast<std::uint32_t>(plan_.billboards.size()),
-                                             static_cast<std::uint32_t>(part_jobs_.size())});
-        part_jobs_.push_back(job);
+        out.pending_parts->push_back(PendingPart{staleness[p], static_cast<std::uint32_t>(i * parts_ + p),
+                                                 static_cast<std::uint32_t>(out.billboards->size()),
+                                                 static_cast<std::uint32_t>(out.part_jobs->size())});
+        out.part_jobs->push_back(job);
       } else {
         std::size_t tris = 0;
         SnapshotGpu s;
         pc = part_card(job, ch, s, tris);
         turn[p] = glm::mat3(1.0f);
-        plan_.snapshots[slod].push_back(s);
+        out.snapshots.add(slod, s);
         ++st.part_snapshots;
         st.snapshot_triangles += tris;
-        --budget_left_;
+        ++*out.budget_used;
         refreshed = true;
       }
     }
-    plan_.billboards.push_back(part_billboard(pc, bone[p], turn[p]));
+    out.billboards->push_back(part_billboard(pc, bone[p], turn[p]));
     ++st.impostors_per_window[win.size_class];
     ++st.part_cards;
     st.quad_texels += rect_texels(pc.rect, win.size);
@@ -1119,7 +1142,7 @@ bool FramePlanner::plan_parts(std::size_t i, const Character& ch, const BakedCli
     refreshed_[i] = 1;
   }
   ++st.impostors;
-  return true;
+  return PartsPlanned::kCards;
 }
 
 }  // namespace bb::runtime

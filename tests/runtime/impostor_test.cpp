@@ -1156,6 +1156,58 @@ TEST(BodyParts, ViewThresholdZeroRefreshesAnyTurn) {
   }
 }
 
+// Part cards are planned in chunks on the threads too (a card is a unit of work): the plan must
+// not depend on how many threads, while characters turn, windows change size (the camera comes
+// closer) and, with a budget, stale cards wait.
+TEST(BodyParts, PlanIsTheSameWhateverTheThreads) {
+  Model m = pole_model();
+  ASSERT_GT(m.body_parts().size(), 1u);
+  Crowd crowd(m);
+  const int n = 400;
+  for (int i = 0; i < n; ++i)
+    crowd.add(Character{glm::vec3(1.5f * static_cast<float>(i % 40) - 30.0f, 0, -1.5f * static_cast<float>(i / 40)),
+                        0.1f * static_cast<float>(i % 7), 1.0f, 0, 0.013f * static_cast<float>(i), 0.5f});
+  ASSERT_GE(static_cast<std::size_t>(n) * m.body_parts().size(), FramePlanner::kParallelCharacters);
+  for (int budget : {0, 40}) {
+    ImpostorConfig cfg;
+    cfg.part_cards = true;
+    cfg.cache.refresh_budget = budget;
+    cfg.max_pages = 64;
+    std::vector<FramePlanner> planners;
+    for (unsigned threads : {1u, 2u, 5u}) {
+      cfg.planner_threads = threads;
+      planners.emplace_back(m, cfg);
+    }
+    int changes = 0, deferred = 0, threaded = 0;
+    for (int f = 0; f < 10; ++f) {
+      SceneCamera cam = facing_camera(90.0f - 10.0f * static_cast<float>(std::min(f, 4)));
+      for (std::size_t i = 0; i < crowd.size(); i += 3) crowd[i].yaw += 0.03f + 0.01f * static_cast<float>((i * 37) % 5);
+      const float t = 0.04f * static_cast<float>(f);
+      const FramePlan& ref = planners[0].plan(crowd, cam, t, RenderMode::kImpostor);
+      changes += ref.stats.window_refreshes;
+      deferred += ref.stats.deferred_refreshes;
+      EXPECT_EQ(ref.stats.planner_threads, 1);
+      for (std::size_t k = 1; k < planners.size(); ++k) {
+        SCOPED_TRACE(testing::Message() << "budget " << budget << ", frame " << f << ", planner " << k);
+        const FramePlan& p = planners[k].plan(crowd, cam, t, RenderMode::kImpostor);
+        expect_same_plan(p, ref);
+        EXPECT_EQ(p.stats.part_cards, ref.stats.part_cards);
+        EXPECT_EQ(p.stats.part_snapshots, ref.stats.part_snapshots);
+        EXPECT_EQ(p.stats.window_refreshes, ref.stats.window_refreshes);
+        EXPECT_EQ(p.stats.view_refreshes, ref.stats.view_refreshes);
+        EXPECT_EQ(p.stats.posture_refreshes, ref.stats.posture_refreshes);
+        EXPECT_EQ(p.stats.snapshot_triangles, ref.stats.snapshot_triangles);
+        EXPECT_DOUBLE_EQ(p.stats.quad_texels, ref.stats.quad_texels);
+        if (k == 2) threaded += p.stats.planner_threads > 1;
+      }
+      EXPECT_EQ(ref.stats.part_cards, static_cast<int>(ref.billboards.size()));
+    }
+    EXPECT_GT(changes, 0);
+    EXPECT_GT(threaded, 0);
+    if (budget > 0) EXPECT_GT(deferred, 0);
+  }
+}
+
 // With part cards the budget counts cards: the stalest stale cards are refreshed, the others are
 // drawn from their old snapshots meanwhile.
 TEST(BodyParts, RefreshBudgetCountsCards) {

@@ -173,9 +173,9 @@ struct ImpostorConfig {
   // and PSNR is 0.34 dB lower (23.57 against 23.91); with the poses held it is 0.4 dB higher.
   bool turn_limb_cards = false;
   // Threads that plan a frame (FramePlanner::plan), the calling thread included; 0: one per
-  // hardware thread. Crowds of at least FramePlanner::kParallelCharacters units of work without
-  // part cards (a character is one, and each impostor the last frame refreshed kRefreshWork more)
-  // are planned in chunks on a pool of worker threads (started once, asleep between frames); the
+  // hardware thread. Crowds of at least FramePlanner::kParallelCharacters units of work (a
+  // character is one, or one a card with part cards, and each impostor the last frame refreshed
+  // kRefreshWork more) are planned in chunks on a pool of worker threads (started once, asleep between frames); the
   // plan is the same whatever the number of threads. 1: on the calling thread only.
   unsigned planner_threads = 0;
   // Depth-corrected part cards (parallax): each card also carries its snapshot's eye (in the
@@ -332,7 +332,8 @@ class WorkerPool;
 class FramePlanner {
  public:
   // Crowds from this much work on are planned on ImpostorConfig::planner_threads threads, where a
-  // crowd's work is its size plus kRefreshWork for each impostor the previous frame refreshed (a
+  // crowd's work is its size (with part cards, its cards: each is tested every frame, 2.4 us a
+  // 16-part CesiumMan) plus kRefreshWork for each impostor the previous frame refreshed (a
   // refresh costs about that many characters' planning: its snapshot camera, window and tight
   // quad; CesiumMan 0.77 us against 0.07-0.12 us). So the test bed's worst case, every
   // character refreshed every frame, is planned on threads at 250 characters a model too.
@@ -451,32 +452,59 @@ class FramePlanner {
     std::uint32_t frame = 0;  // impostor frames planned so far, this one included
     std::array<int, 8> window_lod{};  // LOD of each window class
   };
+  // Where snapshots go: the plan's lists by LOD, or a chunk's one list with each snapshot's LOD
+  // beside it (room for all its characters' cards; end_frame joins them by LOD, in order).
+  struct SnapshotSink {
+    std::vector<std::vector<SnapshotGpu>>* by_lod = nullptr;
+    std::vector<SnapshotGpu>* list = nullptr;
+    std::vector<std::uint8_t>* lods = nullptr;
+    void add(int lod, const SnapshotGpu& s) const {
+      if (by_lod) {
+        (*by_lod)[static_cast<std::size_t>(lod)].push_back(s);
+      } else {
+        list->push_back(s);
+        lods->push_back(static_cast<std::uint8_t>(lod));
+      }
+    }
+  };
   // Where plan_character writes: the plan's lists, or a chunk's. `deferred` set: characters whose
   // atlas window must be allocated or changed are only listed there (a parallel pass).
   struct Out {
     std::vector<std::vector<InstanceGpu>>* geometry;
-    std::vector<std::vector<SnapshotGpu>>* snapshots;
+    SnapshotSink snapshots;
     std::vector<BillboardGpu>* billboards;
     std::vector<PendingRefresh>* pending;
     FrameStats* st;
     int* budget_used;
     std::vector<std::uint32_t>* deferred;
     bool forced = false;  // a stale impostor the budget reached: refreshed, not left pending
+    // Part cards: stale cards held back for the budget, and their jobs (PendingPart::job indexes
+    // `part_jobs`).
+    std::vector<PendingPart>* pending_parts = nullptr;
+    std::vector<PartJob>* part_jobs = nullptr;
   };
   // A chunk's lists and counters, written by one thread: on cache lines of their own (a counter
   // beside the next chunk's list heads would be written by two threads at once).
   struct alignas(128) Chunk {
     std::vector<std::vector<InstanceGpu>> geometry;
-    std::vector<std::vector<SnapshotGpu>> snapshots;
+    std::vector<SnapshotGpu> snapshots;
+    std::vector<std::uint8_t> snapshot_lods;
+    SnapshotSink sink() { return SnapshotSink{nullptr, &snapshots, &snapshot_lods}; }
+    // Its snapshots into `by_lod`, each after those of its level already there.
+    void join_snapshots(std::vector<std::vector<SnapshotGpu>>& by_lod) const {
+      for (std::size_t j = 0; j < snapshots.size(); ++j) by_lod[snapshot_lods[j]].push_back(snapshots[j]);
+    }
     std::vector<BillboardGpu> billboards;
     std::vector<PendingRefresh> pending;
     std::vector<std::uint32_t> deferred;
+    std::vector<PendingPart> pending_parts;
+    std::vector<PartJob> part_jobs;
     FrameStats st;
     int budget_used = 0;
-    // Empties the lists for `characters` characters, each list holding room for all of them
-    // (which LOD or list a character takes changes from frame to frame: no allocation once warm;
-    // about 0.8 kB a character with four LODs).
-    void clear(std::size_t lods, std::size_t characters);
+    // Empties the lists for `characters` characters of `cards` cards in all (part cards; else as
+    // many as characters), each list holding room for all of them (which LOD or list a character
+    // takes changes from frame to frame: no allocation once warm; about 0.4 kB a card).
+    void clear(std::size_t lods, std::size_t characters, std::size_t cards);
   };
   // Plans character i: culling, geometry LOD or impostor (cache tests, snapshot, card).
   void plan_character(std::size_t i, const Character& ch, const FrameSetup& fs, const Out& out);
@@ -521,11 +549,14 @@ class FramePlanner {
   // snapshot it replaces having been taken in frame `last` (0: none).
   bool fit_quad(std::uint32_t last, std::uint32_t frame) const;
   BillboardGpu part_billboard(const PartCache& c, const glm::mat4& bone, const glm::mat3& turn) const;
-  // Plans character i's part cards (windows, cache tests, snapshots, cards); false when the
-  // atlas is full (the character is then drawn as geometry).
-  bool plan_parts(std::size_t i, const Character& ch, const BakedClip& bc, int f0, int f1, float blend,
-                  const InstanceGpu& inst, const glm::vec3& ta, float radius, float pixels, const SceneCamera& camera,
-                  float time, FrameStats& st);
+  // Plans character i's part cards (windows, cache tests, snapshots, cards) into `out`: kGeometry
+  // when the atlas is full or its snapshots would live one frame (the character is then drawn as
+  // geometry), kDeferred when a window must be allocated or changed in a parallel pass (`out.deferred`
+  // set: planned again in crowd order by end_frame).
+  enum class PartsPlanned { kCards, kGeometry, kDeferred };
+  PartsPlanned plan_parts(std::size_t i, const Character& ch, const BakedClip& bc, int f0, int f1, float blend,
+                          const InstanceGpu& inst, const glm::vec3& ta, float radius, float pixels,
+                          const SceneCamera& camera, float time, const Out& out);
   FramePlan plan_;
 };
 
