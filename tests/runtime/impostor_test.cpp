@@ -1204,7 +1204,9 @@ TEST(BodyParts, PlanIsTheSameWhateverTheThreads) {
     }
     EXPECT_GT(changes, 0);
     EXPECT_GT(threaded, 0);
-    if (budget > 0) EXPECT_GT(deferred, 0);
+    if (budget > 0) {
+      EXPECT_GT(deferred, 0);
+    }
   }
 }
 
