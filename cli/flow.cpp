@@ -720,12 +720,13 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     if (s.impostor)
       std::printf("  impostors  %8.2f ms/frame  (95th percentile %.2f ms; refresh fraction %.3f, at most %d snapshots in a frame)\n",
                   result->impostor_ms, result->impostor_spread.p95, result->refresh_fraction, result->snapshots_max);
-    if (s.impostor && result->short_lived_geometry > 0)
-      std::printf("             %.1f %% of the characters drawn as geometry in place of snapshots that would live one frame%s\n",
-                  100.0 * result->short_lived_geometry,
-                  result->impostor_target_adaptive
-                      ? (", in a target of the scene's samples in " + std::to_string(static_cast<int>(std::lround(100.0 * result->impostor_multisampled_frames))) + " % of the frames").c_str()
-                      : "");
+    if (s.impostor && result->short_lived_geometry > 0) {
+      std::printf("             %.1f %% of the characters drawn as geometry in place of snapshots that would live one frame",
+                  100.0 * result->short_lived_geometry);
+      if (result->impostor_target_adaptive)
+        std::printf(", in a target of the scene's samples in %.0f %% of the frames", 100.0 * result->impostor_multisampled_frames);
+      std::printf("\n");
+    }
     if (s.geometry && s.impostor)
       std::printf("  ratio      %8.3f  (speed-up %.2fx), PSNR %.1f dB, SSIM %.3f\n", result->ratio,
                   result->ratio > 0 ? 1 / result->ratio : 0, result->psnr_db, result->ssim);

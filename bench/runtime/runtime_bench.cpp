@@ -72,14 +72,11 @@ void BM_UpdateNoSnapshot(benchmark::State& state) {
 }
 BENCHMARK(BM_UpdateNoSnapshot)->Arg(10000)->Unit(benchmark::kMicrosecond);
 
-// Walking at 60 Hz with the paper's thresholds (posture 40 %, view 8 degrees); a few refresh.
-// `budget` > 0: at most that many refreshes a frame (the paper's section 7, item 1), the stalest
-// first; the others wait and cost only their tests.
-void walk(benchmark::State& state, int budget) {
+// Walking at 60 Hz under `cfg`: each frame's plan, the refresh fraction (named `refresh_name`) and,
+// with a budget, the refreshes held back.
+void walk(benchmark::State& state, const ImpostorConfig& cfg, const char* refresh_name = "refresh_fraction") {
   const int n = static_cast<int>(state.range(0));
   Crowd crowd = make_crowd(n);
-  ImpostorConfig cfg{.max_pages = 256};
-  cfg.cache.refresh_budget = budget;
   FramePlanner planner(model(), cfg);
   SceneCamera cam = camera(n);
   float t = 0.0f;
@@ -94,66 +91,44 @@ void walk(benchmark::State& state, int budget) {
   state.SetItemsProcessed(state.iterations() * n);
   state.counters["ns_per_character"] =
       benchmark::Counter(static_cast<double>(n) * state.iterations(), benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
-  state.counters["refresh_fraction"] = refresh / static_cast<double>(state.iterations());
-  if (budget > 0) state.counters["deferred_per_frame"] = deferred / static_cast<double>(state.iterations());
+  state.counters[refresh_name] = refresh / static_cast<double>(state.iterations());
+  if (cfg.cache.refresh_budget > 0) state.counters["deferred_per_frame"] = deferred / static_cast<double>(state.iterations());
 }
-void BM_UpdateWalking(benchmark::State& state) { walk(state, 0); }
+
+// The paper's thresholds (posture 40 %, view 8 degrees); a few refresh. `budget` > 0: at most that
+// many refreshes a frame (the paper's section 7, item 1), the stalest first; the others wait and
+// cost only their tests.
+ImpostorConfig paper_thresholds(int budget) {
+  ImpostorConfig cfg{.max_pages = 256};
+  cfg.cache.refresh_budget = budget;
+  return cfg;
+}
+void BM_UpdateWalking(benchmark::State& state) { walk(state, paper_thresholds(0)); }
 BENCHMARK(BM_UpdateWalking)->Arg(10000)->Unit(benchmark::kMicrosecond);
-void BM_UpdateWalkingBudget(benchmark::State& state) { walk(state, 100); }
+void BM_UpdateWalkingBudget(benchmark::State& state) { walk(state, paper_thresholds(100)); }
 BENCHMARK(BM_UpdateWalkingBudget)->Arg(10000)->Unit(benchmark::kMicrosecond);
 
 // The worst case of the paper's test bed: both thresholds 0, every character refreshed every
 // frame (its snapshot camera, window and skinning job planned), on one thread and on the default's.
 void BM_UpdateRefreshAll(benchmark::State& state) {
-  const int n = static_cast<int>(state.range(0));
-  Crowd crowd = make_crowd(n);
   ImpostorConfig cfg{.max_pages = 256};
   cfg.cache.posture_threshold = 0.0f;
   cfg.cache.view_threshold_deg = 0.0f;
   cfg.planner_threads = static_cast<unsigned>(state.range(1));
-  if (std::getenv("NOTIGHT")) cfg.tight_quads = false;
-  FramePlanner planner(model(), cfg);
-  SceneCamera cam = camera(n);
-  float t = 0.0f;
-  double refresh = 0;
-  for (auto _ : state) {
-    t += 1.0f / 60.0f;
-    const FramePlan& p = planner.plan(crowd, cam, t, RenderMode::kImpostor);
-    refresh += p.stats.refresh_fraction;
-    benchmark::DoNotOptimize(p.billboards.data());
-  }
-  state.SetItemsProcessed(state.iterations() * n);
-  state.counters["ns_per_character"] =
-      benchmark::Counter(static_cast<double>(n) * state.iterations(), benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  walk(state, cfg);
   state.counters["body_parts"] = static_cast<double>(model().body_parts().size());
-  state.counters["refresh_fraction"] = refresh / static_cast<double>(state.iterations());
 }
 BENCHMARK(BM_UpdateRefreshAll)->Args({1000, 1})->Args({1000, 0})->Unit(benchmark::kMicrosecond);
 
-// Part cards (one card per body part, the paper's future work) walking at 60 Hz, view 8 degrees,
-// posture test off: each character's parts tested every frame, about a fifth of the cards
-// refreshed; a card is a unit of planning work (FramePlanner::kParallelCharacters), so 1,000
-// characters of 16 parts are planned on every thread.
+// Part cards (one card per body part, the paper's future work), view 8 degrees, posture test off:
+// each character's parts tested every frame, about a fifth of the cards refreshed; a card is a
+// unit of planning work (FramePlanner::kParallelCharacters), so 1,000 characters of 16 parts are
+// planned on every thread.
 void BM_UpdatePartCards(benchmark::State& state) {
-  const int n = static_cast<int>(state.range(0));
-  Crowd crowd = make_crowd(n);
   ImpostorConfig cfg{.max_pages = 256};
   cfg.part_cards = true;
   cfg.cache.posture_test = false;
-  FramePlanner planner(model(), cfg);
-  SceneCamera cam = camera(n);
-  float t = 0.0f;
-  double refresh = 0;
-  for (auto _ : state) {
-    t += 1.0f / 60.0f;
-    const FramePlan& p = planner.plan(crowd, cam, t, RenderMode::kImpostor);
-    refresh += p.stats.refresh_fraction;
-    benchmark::DoNotOptimize(p.billboards.data());
-  }
-  state.SetItemsProcessed(state.iterations() * n);
-  state.counters["ns_per_character"] =
-      benchmark::Counter(static_cast<double>(n) * state.iterations(), benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
-  state.counters["card_refresh_fraction"] = refresh / static_cast<double>(state.iterations());
+  walk(state, cfg, "card_refresh_fraction");
 }
 BENCHMARK(BM_UpdatePartCards)->Arg(1000)->Unit(benchmark::kMicrosecond);
 

@@ -33,7 +33,8 @@ struct PlaneExtent {
   glm::vec2 lo{1e30f}, hi{-1e30f};
 };
 
-// add_box with the centre c and half edges a0, a1, a2 already in the camera's frame (Ho, Uo, Vo).
+// Adds the box centre ± a0 ± a1 ± a2 (half edges), centre and edges in the snapshot camera's frame
+// (Ho, Uo, Vo; metres from the snapshot's centre), to `e`.
 // The corners are summed there: the refresh of a character with part-tight quads projects one box
 // per body part (the worst case of the test bed: 1,000 refreshes a frame).
 void add_framed_box(const SnapshotCamera& cam, const glm::vec3& c, const glm::vec3& a0, const glm::vec3& a1,
@@ -72,20 +73,14 @@ void add_framed_box(const SnapshotCamera& cam, const glm::vec3& c, const glm::ve
   e.hi = glm::max(e.hi, glm::vec2(x1, y1));
 }
 
-// Adds the box centre ± axes[0] ± axes[1] ± axes[2] (offsets from the snapshot's centre, world
-// metres; `axes` the half edges) to `e`, the centre and axes projected once.
-void add_box(const SnapshotCamera& cam, const glm::vec3& centre, const glm::mat3& axes, PlaneExtent& e) {
-  auto frame = [&cam](const glm::vec3& v) { return glm::vec3(glm::dot(v, cam.ho), glm::dot(v, cam.uo), glm::dot(v, cam.vo)); };
-  add_framed_box(cam, frame(centre), frame(axes[0]), frame(axes[1]), frame(axes[2]), e);
-}
-
-// The box [lo, hi] placed by the affine `m` (columns: axes and translation) as add_box wants it,
-// relative to `origin`.
+// Adds the box [lo, hi] placed by the affine `m` (columns: axes and translation; world metres)
+// to `e`, its centre (relative to `origin`, the snapshot's centre) and half edges projected once.
 void add_placed_box(const SnapshotCamera& cam, const glm::mat4& m, const glm::vec3& lo, const glm::vec3& hi,
                     const glm::vec3& origin, PlaneExtent& e) {
+  auto frame = [&cam](const glm::vec3& v) { return glm::vec3(glm::dot(v, cam.ho), glm::dot(v, cam.uo), glm::dot(v, cam.vo)); };
   const glm::vec3 h = 0.5f * (hi - lo);
-  const glm::mat3 axes(glm::vec3(m[0]) * h.x, glm::vec3(m[1]) * h.y, glm::vec3(m[2]) * h.z);
-  add_box(cam, glm::vec3(m * glm::vec4(0.5f * (lo + hi), 1.0f)) - origin, axes, e);
+  add_framed_box(cam, frame(glm::vec3(m * glm::vec4(0.5f * (lo + hi), 1.0f)) - origin), frame(glm::vec3(m[0]) * h.x),
+                 frame(glm::vec3(m[1]) * h.y), frame(glm::vec3(m[2]) * h.z), e);
 }
 
 // The snapshot camera's frame seen from a character's model space: a model-space point p lies at
