@@ -134,6 +134,15 @@ std::uint64_t whole(const json& v, const std::string& w, std::uint64_t least = 0
   fail(w, std::string("expected an integer, got ") + v.type_name());
 }
 
+// A material's colour factor: an array of `count` numbers (tinygltf refuses another length
+// without saying where).
+void factor(const json& v, const std::string& w, std::size_t count) {
+  for (std::size_t i = 0; i < array(v, w).size(); ++i)
+    if (!v[i].is_number()) fail(at(w, i), std::string("expected a number, got ") + v[i].type_name());
+  if (v.size() != count)
+    fail(w, "has " + std::to_string(v.size()) + " numbers; it must have " + std::to_string(count));
+}
+
 const std::string& text(const json& v, const std::string& w) {
   if (!v.is_string()) fail(w, std::string("expected a string, got ") + v.type_name());
   return v.get_ref<const std::string&>();
@@ -389,9 +398,11 @@ void check_document(const json& doc, const std::string& path, const GlbLayout* g
     if (const json* pbr = find(m, "pbrMetallicRoughness")) {
       const std::string pw = at(w, "pbrMetallicRoughness");
       object(*pbr, pw);
+      if (const json* f = find(*pbr, "baseColorFactor")) factor(*f, at(pw, "baseColorFactor"), 4);
       texture_info(*pbr, pw, "baseColorTexture");
       texture_info(*pbr, pw, "metallicRoughnessTexture");
     }
+    if (const json* f = find(m, "emissiveFactor")) factor(*f, at(w, "emissiveFactor"), 3);
     for (const char* key : {"normalTexture", "occlusionTexture", "emissiveTexture"})
       texture_info(m, w, key);
   });
