@@ -92,6 +92,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["snapshot_samples"] = s.snapshot_samples;
   j["impostor_taps"] = s.snapshot_samples > 1 ? 1 : s.impostor_taps;
   j["quad_fit"] = s.fit_quads ? "coverage" : "boxes";
+  if (s.fit_quads) j["coverage_group"] = r.coverage_group;
   j["short_lived"] = r.short_lived_as_geometry ? "geometry" : "snapshot";
   if (r.short_lived_as_geometry) j["short_lived_geometry"] = r.short_lived_geometry;
   j["flush_every"] = s.flush_every_indices < 0 ? ordered_json("auto") : s.flush_every_indices == 0 ? ordered_json("off") : ordered_json(s.flush_every_indices);
@@ -356,6 +357,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (a.quad_fit != "boxes" && a.quad_fit != "coverage")
     return fail("--quad-fit: expected boxes or coverage (got \"" + a.quad_fit + "\")");
   s.fit_quads = a.quad_fit == "coverage";
+  if (a.coverage_group != "auto" && a.coverage_group != "4" && a.coverage_group != "8" && a.coverage_group != "16")
+    return fail("--coverage-group: expected auto, 4, 8 or 16 (got \"" + a.coverage_group + "\")");
+  s.coverage_group = a.coverage_group == "auto" ? 0 : std::stoi(a.coverage_group);
   s.time_stages = a.gpu_stages;
   if (a.flush_every == "auto") s.flush_every_indices = -1;
   else if (a.flush_every == "off") s.flush_every_indices = 0;
@@ -819,6 +823,9 @@ void add_flow_command(CLI::App& app, int* status) {
       ->capture_default_str();
   cmd->add_option("--quad-fit", a->quad_fit,
                   "Impostor quads: boxes (the projected pose and part boxes) or coverage (shrunk on the GPU to the snapshot's covered texels)")
+      ->capture_default_str();
+  cmd->add_option("--coverage-group", a->coverage_group,
+                  "With --quad-fit coverage: invocations per side of the coverage pass's work groups, one group per new snapshot: 4, 8, 16 or auto (4 on a software rasterizer such as llvmpipe, which runs a group's invocations as one thread's SIMD lanes; 16 on a GPU, where a group waits for its invocations' walk over the window); the same rectangles whatever the size")
       ->capture_default_str();
   cmd->add_option("--flush-every", a->flush_every,
                   "Flush the drawing to the GPU after every N indices drawn into a single-sampled target, geometry and snapshots alike: auto (every 10000 on a software rasterizer such as llvmpipe, which then rasterizes the first characters while it shades the next ones' vertices: in single-sampled geometry passes of 20000 and more and snapshot passes of 60000 and more; never on a GPU), off, or N (any pass)")

@@ -79,6 +79,7 @@ struct FlowSettings {
   int snapshot_samples = 1;                 // ImpostorConfig::snapshot_samples
   int impostor_taps = 4;                    // ImpostorConfig::impostor_taps
   bool fit_quads = true;                    // ImpostorConfig::fit_quads_to_coverage
+  int coverage_group = 0;                   // ImpostorConfig::coverage_group (0: by the rasterizer)
   bool time_stages = false;                 // GPU timestamps between the renderer's stages (gpu_ms_stages)
   int flush_every_indices = -1;             // DrawOptions::flush_every_indices (-1: auto, 0: never)
   // ImpostorConfig::short_lived_as_geometry: -1 auto (on where the impostor target has the
@@ -125,6 +126,7 @@ struct FlowResult {
   runtime::StageTimes geometry_gpu, impostor_gpu;
   double deferred_refreshes = 0;            // mean stale impostors held back per frame by the budget
   bool short_lived_as_geometry = false;     // what FlowSettings::short_lived resolved to
+  int coverage_group = 4;                   // what FlowSettings::coverage_group resolved to
   // Mean share of the drawn characters that the impostor path drew as geometry instead of a
   // snapshot drawn once (ImpostorConfig::short_lived_as_geometry).
   double short_lived_geometry = 0;
@@ -197,6 +199,7 @@ struct FlowArgs {
   int snapshot_samples = 1;
   std::string impostor_taps = "auto";
   std::string quad_fit = "coverage";
+  std::string coverage_group = "auto";
   bool gpu_stages = false;
   std::string flush_every = "auto";
   std::string short_lived = "auto";  // auto, geometry or snapshot (FlowSettings::short_lived)

@@ -162,6 +162,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   config.snapshot_samples = s.snapshot_samples;
   config.impostor_taps = s.impostor_taps;
   config.fit_quads_to_coverage = s.fit_quads;
+  config.coverage_group = s.coverage_group;
   config.planner_threads = s.planner_threads;
   DrawOptions draw_options;
   draw_options.time_stages = s.time_stages;
@@ -206,6 +207,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
     auto r = Renderer::create(*models[m], config);
     if (!r) return r.error();
     renderers.push_back(std::move(*r));
+    out.coverage_group = renderers.back()->coverage_group();
     planners.push_back(std::make_unique<FramePlanner>(*models[m], config));
     crowds.emplace_back(*models[m]);
     crowds.back().reserve(static_cast<std::size_t>(humans_m));

@@ -44,6 +44,10 @@ if spr:
 sp = r.get('frame_ms_split')
 if sp:
     print("  split " + " | ".join(f"{k} " + "/".join(f"{v:.3f}" for v in d.values()) for k, d in sp.items() if isinstance(d, dict)))
+gs = r.get('gpu_ms_stages')
+if gs and 'impostor' in gs:
+    gi = gs['impostor']
+    print(f"  gpu: geometry {gs['geometry']['geometry']:.3f} | impostor snapshots {gi['snapshots']:.3f} coverage {gi['coverage']:.3f} quads {gi['impostors']:.3f} | coverage_group {r.get('coverage_group')}")
 for s in r.get('sweep', []):
     print(line(s, "  %s" % s.get('threshold', s.get('view_deg', s.get('posture')))))
 for s in r.get('scaling', []):
@@ -316,6 +320,20 @@ set_s34i() {
   done
   flow i_main $C4 --frames 120
   flow i_scaling $C4 --frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 16
+}
+# The coverage pass's work groups (thirty-fifth session; not yet measured on a GPU): 16x16 (auto on
+# a GPU) against 4x4 (llvmpipe's), alternated, with the stages timed: the paper's 20 humans, where
+# the H200 gave the pass 0.07 ms for a snapshot or two, part cards at 8 degrees (~50 new snapshots
+# a frame) and the 1,000-human worst case.
+set_s35() {
+  for i in 1 2 3; do
+    for g in 16 4; do
+      flow s35_main_g${g}_$i $C4 --frames 120 --gpu-stages --coverage-group $g
+      flow s35_parts_g${g}_$i $C4 --frames 60 --gpu-stages --impostor-parts --posture off --view 8 --coverage-group $g
+    done
+  done
+  for g in 16 4; do flow s35_worst_h1000_g$g $C4 --frames 30 --humans 1000 --posture 0 --view 0 --gpu-stages --coverage-group $g; done
+  flow s35_sweep_view $C4 --frames 60 --sweep view
 }
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")

@@ -450,10 +450,11 @@ void main() {
 // Quads fitted to the coverage (ImpostorConfig::fit_quads_to_coverage): per new snapshot (one
 // work group), the smallest rectangle of its quad that holds every texel with coverage, widened by
 // part.w texels (how far the impostor shader's taps at a pixel beside it reach), in window units;
-// an empty snapshot gets an empty rectangle. The planner's quad bounds it. 4x4 invocations, each
-// gathering 2x2 texels a step: on llvmpipe 0.43 ms a frame for the part cards' ~50 new snapshots
-// and 0.65 ms for 20 Fox windows, against 0.75 and 1.02 ms with 16x16 invocations fetching a texel
-// each (most of the part cards' windows are smaller than 16x16 groups of 2x2).
+// an empty snapshot gets an empty rectangle. The planner's quad bounds it. BB_GROUP x BB_GROUP
+// invocations (ImpostorConfig::coverage_group: 4 on llvmpipe, 16 on a GPU), each gathering 2x2
+// texels a step: on llvmpipe 4x4 took 0.43 ms a frame for the part cards' ~50 new snapshots and
+// 0.65 ms for 20 Fox windows, against 0.75 and 1.02 ms with 16x16 invocations fetching a texel
+// each; 16x16 with the gathers is the same within the noise there.
 //
 // With depth-corrected part cards (BB_OFFSETS) the same pass reads the snapshots' masked plane
 // offsets instead (their mask is the coverage) and also writes them at a quarter of the resolution
@@ -464,7 +465,10 @@ void main() {
 // bed, part cards, 8 / 17 / 90 degrees: 26.56 / 24.73 / 20.41 dB with 4x4, 26.56 / 24.67 / 20.17
 // with 2x2 (the four gathers around the point that it replaced: 26.56 / 24.73 / 20.47).
 const char* kCoverageCs = R"(#version 450 core
-layout(local_size_x = 4, local_size_y = 4) in;
+#ifndef BB_GROUP
+#define BB_GROUP 4
+#endif
+layout(local_size_x = BB_GROUP, local_size_y = BB_GROUP) in;
 layout(binding = 2) uniform sampler2DArray u_atlas;
 layout(std430, binding = 0) writeonly buffer Coverage { vec4 covered[]; };
 struct Snapshot { vec4 instance[2], ho_half, uo_dist, vo, ta, window, rect, offset, part, quad; };  // SnapshotGpu
@@ -517,8 +521,8 @@ void main() {
   }
   if (s.part.z < 0.5) t1 = t0 - 1;  // not fitted: no texel counts
   vec2 inv = 1.0 / vec2(textureSize(u_offset, 0).xy);
-  for (int by = w0.y + int(gl_LocalInvocationID.y); by <= w1.y; by += 4)
-    for (int bx = w0.x + int(gl_LocalInvocationID.x); bx <= w1.x; bx += 4) {
+  for (int by = w0.y + int(gl_LocalInvocationID.y); by <= w1.y; by += BB_GROUP)
+    for (int bx = w0.x + int(gl_LocalInvocationID.x); bx <= w1.x; bx += BB_GROUP) {
       vec2 sum = vec2(0.0);
       for (int j = 0; j < 4; j += 2)
         for (int i = 0; i < 4; i += 2) {
@@ -539,8 +543,8 @@ void main() {
   // 2x2 texels per step: one gather of their alphas (x: (0,1), y: (1,1), z: (1,0), w: (0,0)),
   // texels past t1 (the next window's) masked out. A quarter of the fetches of one per texel.
   vec2 inv = 1.0 / vec2(textureSize(u_atlas, 0).xy);
-  for (int y = t0.y + 2 * int(gl_LocalInvocationID.y); y <= t1.y; y += 8)
-    for (int x = t0.x + 2 * int(gl_LocalInvocationID.x); x <= t1.x; x += 8) {
+  for (int y = t0.y + 2 * int(gl_LocalInvocationID.y); y <= t1.y; y += 2 * BB_GROUP)
+    for (int x = t0.x + 2 * int(gl_LocalInvocationID.x); x <= t1.x; x += 2 * BB_GROUP) {
       bvec4 c = greaterThan(textureGather(u_atlas, vec3(vec2(x + 1, y + 1) * inv, layer), 3), vec4(0.0));
       bool in_x = x + 1 <= t1.x, in_y = y + 1 <= t1.y;
       c = bvec4(c.x && in_y, c.y && in_x && in_y, c.z && in_x, c.w);
@@ -582,6 +586,12 @@ std::string layered(const std::string& src) {
 std::string with_define(std::string src, const char* name, int value = 1) {
   src.insert(src.find('\n') + 1, std::string("#define ") + name + " " + std::to_string(value) + "\n");
   return src;
+}
+
+// ImpostorConfig::coverage_group as used: 4, 8 or 16 (0: by the rasterizer).
+int coverage_group_size(int asked, bool software) {
+  if (asked <= 0) return software ? 4 : 16;
+  return asked <= 4 ? 4 : asked <= 8 ? 8 : 16;
 }
 
 bool has_gl_extension(const char* name) {
@@ -704,6 +714,7 @@ struct Renderer::Impl {
   // draw(), whether its option is auto and the interval it asks for (0: no flushes); for the pass
   // being drawn, the interval (0: none) and the indices drawn since the last flush.
   bool software = false;
+  int coverage_group = 4;  // invocations per side of the coverage pass's work groups
   bool flush_auto = true;
   std::size_t flush_every = 0, flush_at = 0, unflushed = 0;
   // Sets flush_at for a pass into the bound draw framebuffer; `indices()` gives the pass's
@@ -1068,8 +1079,9 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     d.prog_resolve = *pr;
   }
   {
-    auto cs = compile(GL_COMPUTE_SHADER, d.parallax ? with_define(kCoverageCs, "BB_OFFSETS") : std::string(kCoverageCs),
-                      "coverage shader");
+    d.coverage_group = coverage_group_size(config.coverage_group, d.software);
+    const std::string cov = with_define(kCoverageCs, "BB_GROUP", d.coverage_group);
+    auto cs = compile(GL_COMPUTE_SHADER, d.parallax ? with_define(cov, "BB_OFFSETS") : cov, "coverage shader");
     if (!cs) return cs.error();
     auto pcov = link({*cs}, "coverage shader");
     if (!pcov) return pcov.error();
@@ -1548,6 +1560,8 @@ std::vector<std::uint8_t> Renderer::read_atlas_page(int page) const {
                        px.data());
   return px;
 }
+
+int Renderer::coverage_group() const { return impl_->coverage_group; }
 
 glm::vec4 Renderer::coverage_rect(int slot) const {
   glm::vec4 r(0.0f);

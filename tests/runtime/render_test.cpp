@@ -871,6 +871,8 @@ TEST(CrowdRender, RelitImpostorsFollowTheLightWithoutNewSnapshots) {
 
 // Quads fitted to the coverage: the GPU's rectangle holds every covered texel of the window, is
 // smaller than the planner's box-made quad, and drawing with it gives the same frame (to one level).
+// The coverage pass's work groups of 4x4 (llvmpipe's), 8x8 and 16x16 (a GPU's) invocations find
+// the same rectangles: the same checks hold and the frames are the same to the bit.
 TEST(CrowdRender, QuadsFittedToTheCoverageHoldEveryCoveredTexel) {
   REQUIRE_GL();
   std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
@@ -881,10 +883,11 @@ TEST(CrowdRender, QuadsFittedToTheCoverageHoldEveryCoveredTexel) {
   // One frame with every impostor refreshed; with fitted quads, also checks each rectangle.
   // Depth-corrected part cards: the rectangles come from the plane offsets' mask, in the pass that
   // also writes their wide texels.
-  auto frame = [&](float tpp, bool fit, bool depth_cards = false) {
+  auto frame = [&](float tpp, bool fit, bool depth_cards = false, int group = 4) {
     ImpostorConfig cfg = refresh_always();
     cfg.texels_per_pixel = tpp;
     cfg.fit_quads_to_coverage = fit;
+    cfg.coverage_group = group;
     cfg.part_cards = cfg.parallax_cards = depth_cards;
     FramePlanner planner(*m, cfg);
     auto renderer = Renderer::create(*m, cfg);
@@ -892,6 +895,7 @@ TEST(CrowdRender, QuadsFittedToTheCoverageHoldEveryCoveredTexel) {
     auto target = OffscreenTarget::create(640, 512, 4);
     EXPECT_TRUE(target.ok());
     if (!renderer.ok() || !target.ok()) return std::vector<std::uint8_t>{};
+    EXPECT_EQ((*renderer)->coverage_group(), group);
     (*target)->bind(true);
     const FramePlan& p = planner.plan(crowd, ring_camera(), 0.3f, RenderMode::kImpostor);
     DrawOptions blend;
@@ -961,8 +965,10 @@ TEST(CrowdRender, QuadsFittedToTheCoverageHoldEveryCoveredTexel) {
     }
     std::printf("fitted quads: %d channel values differ, by at most %d\n", differ, worst);
     EXPECT_LE(worst, 1);
+    for (int group : {8, 16}) EXPECT_EQ(frame(tpp, true, false, group), fitted) << group << "x" << group << " work groups";
   }
-  frame(1.0f, true, true);
+  const auto depth4 = frame(1.0f, true, true);
+  EXPECT_EQ(frame(1.0f, true, true, 16), depth4) << "16x16 work groups, depth-corrected part cards";
 }
 
 // Snapshots on the pixel grid, multisampled like the scene and blended: a fresh impostor is the

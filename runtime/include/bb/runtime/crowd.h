@@ -116,6 +116,17 @@ struct ImpostorConfig {
   // MSAA, 1.32-1.43 -> 1.18-1.19 times its frame time at one sample; part cards at 8 degrees draw
   // 1.8 % more quad texels (within the timing noise).
   bool fit_quads_to_coverage = true;
+  // Invocations per side of the coverage pass's work groups (one group per new snapshot; 4, 8 or
+  // 16; 0: 4 on a software rasterizer, 16 on a GPU). Each invocation walks its share of the
+  // window's texels one gather of 2x2 at a time, so on a GPU that walk is what a snapshot's group
+  // waits for: a 128-texel window takes 256 steps with 4x4 invocations, 16 with 16x16. The H200
+  // gave the pass 0.07 ms of GPU time for the snapshot or two of the paper's 20 humans (thirty-
+  // fourth session), which such a walk explains; 16x16 there is not measured yet
+  // (bench/flow/gpu_run.sh s35). llvmpipe runs a group's invocations as one thread's SIMD lanes:
+  // 16x16 gives the same times within the noise there (part cards at 8 degrees, ~50 new snapshots
+  // a frame: impostor frame 4.79-5.45 against 4.67-5.63 ms, three alternated runs), and 4x4 stays.
+  // The rectangles are the same whatever the size (a minimum and maximum over the same texels).
+  int coverage_group = 0;
   // Samples per texel of the snapshots (1 or 4). 4: drawn multisampled into a scratch page and
   // resolved into the atlas, so alpha holds each texel's coverage as the geometry's multisampled
   // pixels do; the impostor shader then takes one tap per pixel. 1: single-sampled, the impostor

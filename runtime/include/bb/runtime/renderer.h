@@ -127,6 +127,9 @@ class Renderer {
   // slot `slot` (BillboardGpu::layer.y) covers, widened by its taps' reach, as found on the GPU
   // (ImpostorConfig::fit_quads_to_coverage); x0 > x1 when nothing is covered. For inspection.
   glm::vec4 coverage_rect(int slot) const;
+  // Invocations per side of the coverage pass's work groups (ImpostorConfig::coverage_group as
+  // resolved for this GL: 4, 8 or 16).
+  int coverage_group() const;
   // Window texels under the impostor quads of `plan` as drawn: the planner's quads
   // (FrameStats::quad_texels), narrowed to the coverage rectangles where they are fitted. Reads
   // the rectangles back from the GPU (waits for it): for reports, outside timed frames.
