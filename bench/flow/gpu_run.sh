@@ -333,6 +333,7 @@ set_s35() {
     done
   done
   for g in 16 4; do flow s35_worst_h1000_g$g $C4 --frames 30 --humans 1000 --posture 0 --view 0 --gpu-stages --coverage-group $g; done
+  flow s35_main_boxes $C4 --frames 120 --gpu-stages --quad-fit boxes  # no coverage pass at all
   flow s35_sweep_view $C4 --frames 60 --sweep view
 }
 for set in ${@:-main}; do set_$set; done
