@@ -65,7 +65,9 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["planner_threads"] = s.planner_threads;
   j["geometry_ms"] = r.geometry_ms;
   j["impostor_ms"] = r.impostor_ms;
-  auto spread = [](const FlowResult::Spread& x) { return ordered_json{{"p95", x.p95}, {"max", x.max}, {"sd", x.sd}}; };
+  auto spread = [](const FlowResult::Spread& x) {
+    return ordered_json{{"median", x.median}, {"p95", x.p95}, {"max", x.max}, {"sd", x.sd}};
+  };
   j["frame_ms_spread"] = {{"geometry", spread(r.geometry_spread)}, {"impostor", spread(r.impostor_spread)}};
   auto split_ms = [](const FlowResult::Split& x) {
     return ordered_json{{"plan", x.plan}, {"submit", x.submit}, {"finish", x.finish}};

@@ -58,6 +58,8 @@ FlowResult::Spread spread(std::vector<double> t) {
   s.sd = std::sqrt(var / static_cast<double>(t.size()));
   std::sort(t.begin(), t.end());
   s.max = t.back();
+  const std::size_t n = t.size();
+  s.median = n % 2 ? t[n / 2] : 0.5 * (t[n / 2 - 1] + t[n / 2]);
   const std::size_t rank = static_cast<std::size_t>(std::ceil(0.95 * static_cast<double>(t.size())));
   s.p95 = t[std::clamp<std::size_t>(rank, 1, t.size()) - 1];
   return s;

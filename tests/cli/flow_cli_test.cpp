@@ -170,6 +170,8 @@ TEST(FlowCli, RefreshBudgetCapsTheSnapshotsPerFrame) {
   for (const char* path : {"geometry", "impostor"}) {
     const auto& s = jc["frame_ms_spread"][path];
     EXPECT_GE(s["max"].get<double>(), s["p95"].get<double>()) << path;
+    EXPECT_GE(s["p95"].get<double>(), s["median"].get<double>()) << path;
+    EXPECT_GT(s["median"].get<double>(), 0.0) << path;
     EXPECT_GE(s["sd"].get<double>(), 0.0) << path;
     // The frame's parts (planning, submission, the wait for the GPU) add up to its time.
     const auto& sp = jc["frame_ms_split"][path];
