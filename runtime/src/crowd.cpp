@@ -761,7 +761,8 @@ const FramePlan& FramePlanner::end_frame() {
     if (chunks_.size() < chunks) chunks_.resize(chunks);
     auto run_chunk = [&](std::size_t c) {
       Chunk& k = chunks_[c];
-      k.clear(model_->lods.size(), take * (c + 1) / chunks - take * c / chunks, take * (c + 1) / chunks - take * c / chunks);
+      const std::size_t refreshes = take * (c + 1) / chunks - take * c / chunks;  // a card each
+      k.clear(model_->lods.size(), refreshes, refreshes);
       const Out o{&k.geometry, k.sink(), &k.billboards, nullptr, &k.st, &k.budget_used, nullptr, true};
       for (std::size_t j = take * c / chunks, e = take * (c + 1) / chunks; j < e; ++j)
         plan_character(pending_[j].order, crowd[pending_[j].order], fs, o);

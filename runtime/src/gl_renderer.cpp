@@ -465,9 +465,6 @@ void main() {
 // bed, part cards, 8 / 17 / 90 degrees: 26.56 / 24.73 / 20.41 dB with 4x4, 26.56 / 24.67 / 20.17
 // with 2x2 (the four gathers around the point that it replaced: 26.56 / 24.73 / 20.47).
 const char* kCoverageCs = R"(#version 450 core
-#ifndef BB_GROUP
-#define BB_GROUP 4
-#endif
 layout(local_size_x = BB_GROUP, local_size_y = BB_GROUP) in;
 layout(binding = 2) uniform sampler2DArray u_atlas;
 layout(std430, binding = 0) writeonly buffer Coverage { vec4 covered[]; };
