@@ -103,6 +103,14 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
     j["refresh_budget"] = s.refresh_budget;
     j["deferred_refreshes_per_frame"] = r.deferred_refreshes;
   }
+  if (s.refresh_ahead > 0.0f) {
+    j["refresh_ahead"] = s.refresh_ahead;
+    j["ahead_count"] = s.ahead_count;
+    j["ahead_refreshes_per_frame"] = r.ahead_refreshes;
+  } else {
+    j["refresh_ahead"] = "off";
+  }
+  j["snapshot_frames"] = r.snapshot_frames;
   if (s.part_cards) {
     j["impostor_parts"] = r.parts;
     j["part_cards_per_frame"] = r.part_cards;
@@ -323,6 +331,17 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   s.part_cards = a.impostor_parts;
   if (a.refresh_budget < 0) return fail("--refresh-budget: expected a count >= 0 (got " + std::to_string(a.refresh_budget) + ")");
   s.refresh_budget = a.refresh_budget;
+  if (a.refresh_ahead == "off") {
+    s.refresh_ahead = 0.0f;
+  } else {
+    char* end = nullptr;
+    const float f = std::strtof(a.refresh_ahead.c_str(), &end);
+    if (a.refresh_ahead.empty() || *end != '\0' || !(f > 0.0f && f < 1.0f))
+      return fail("--refresh-ahead: expected a fraction of the thresholds above 0 and below 1, or off (got \"" + a.refresh_ahead + "\")");
+    s.refresh_ahead = f;
+  }
+  if (a.ahead_count < 1) return fail("--ahead-count: expected a count >= 1 (got " + std::to_string(a.ahead_count) + ")");
+  s.ahead_count = a.ahead_count;
   if (a.limb_cards != "turn" && a.limb_cards != "fixed")
     return fail("--limb-cards: expected turn or fixed (got \"" + a.limb_cards + "\")");
   s.turn_limb_cards = a.limb_cards == "turn";
@@ -843,6 +862,11 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--refresh-budget", a->refresh_budget,
                   "At most N impostors refreshed per frame, the stalest first (0: no limit; the paper's future work; "
                   "with several models, split between them, at least one each)")
+      ->capture_default_str();
+  cmd->add_option("--refresh-ahead", a->refresh_ahead,
+                  "A frame that takes snapshots anyway also refreshes the impostors past this fraction of their thresholds (up to --ahead-count, the stalest first), so that refreshes gather in fewer frames and the others skip the snapshot pass: a fraction in (0, 1) or off; whole impostors only")
+      ->capture_default_str();
+  cmd->add_option("--ahead-count", a->ahead_count, "With --refresh-ahead: most impostors refreshed ahead in one frame")
       ->capture_default_str();
   cmd->add_option("--sweep", a->sweep, "Sweep the posture threshold (view off) or the view threshold (posture off)");
   cmd->add_flag("--scaling", a->scaling, "Also measure both paths from 20 to 10,000 humans");

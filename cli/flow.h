@@ -69,6 +69,8 @@ struct FlowSettings {
   bool hold_poses = false;                  // every human keeps one pose (no pose lag)
   bool part_cards = false;                  // ImpostorConfig::part_cards (one card per body part)
   int refresh_budget = 0;                   // CacheConfig::refresh_budget (0: no limit)
+  float refresh_ahead = 0.0f;               // CacheConfig::ahead_fraction (0: off)
+  int ahead_count = 4;                      // CacheConfig::ahead_count
   bool turn_limb_cards = false;             // ImpostorConfig::turn_limb_cards
   bool parallax_cards = false;              // ImpostorConfig::parallax_cards (depth-corrected cards)
   bool relight = false;                     // ImpostorConfig::relight (impostors lit as drawn)
@@ -126,6 +128,9 @@ struct FlowResult {
   // measured frames of each path (geometry: its geometry stage; impostors: the other three).
   runtime::StageTimes geometry_gpu, impostor_gpu;
   double deferred_refreshes = 0;            // mean stale impostors held back per frame by the budget
+  double ahead_refreshes = 0;               // mean impostors refreshed ahead per frame (CacheConfig::ahead_fraction)
+  // Share of the measured impostor frames that took a snapshot (and so paid for a snapshot pass).
+  double snapshot_frames = 0;
   bool short_lived_as_geometry = false;     // what FlowSettings::short_lived resolved to
   int coverage_group = 4;                   // what FlowSettings::coverage_group resolved to
   // Mean share of the drawn characters that the impostor path drew as geometry instead of a
@@ -191,6 +196,8 @@ struct FlowArgs {
   int lods = 3;      // --lods: LoadOptions::lod_levels for every model
   bool impostor_parts = false;
   int refresh_budget = 0;
+  std::string refresh_ahead = "off";  // --refresh-ahead: a fraction in (0, 1) or off
+  int ahead_count = 4;
   std::string limb_cards = "fixed";
   std::string card_depth = "off";
   std::string relight = "off";

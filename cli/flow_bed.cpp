@@ -206,6 +206,8 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
     // The refresh budget is the crowd's: each model's planner gets its share (at least one).
     config.cache.refresh_budget =
         s.refresh_budget > 0 ? std::max(1, s.refresh_budget / nm + (m < s.refresh_budget % nm ? 1 : 0)) : 0;
+    config.cache.ahead_fraction = s.refresh_ahead;
+    config.cache.ahead_count = s.ahead_count;
     auto r = Renderer::create(*models[m], config);
     if (!r) return r.error();
     renderers.push_back(std::move(*r));
@@ -309,7 +311,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
 
   double g_ms = 0, i_ms = 0, refresh = 0, psnr_sum = 0, ssim_sum = 0, tri_g = 0, tri_s = 0, atlas_use = 0, cards = 0;
   double psnr_min = std::numeric_limits<double>::infinity();
-  double deferred = 0, quad_texels = 0, drawn_texels = 0, short_lived = 0;
+  double deferred = 0, quad_texels = 0, drawn_texels = 0, short_lived = 0, ahead = 0, snapshot_frames = 0;
   int drawn_frames = 0;
   std::vector<double> g_times, i_times;  // per measured frame, ms
   int compared = 0, atlas_pages = 0;
@@ -387,6 +389,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
         sum.geometry_triangles += st.geometry_triangles;
         sum.snapshot_triangles += st.snapshot_triangles;
         sum.deferred_refreshes += st.deferred_refreshes;
+        sum.ahead_refreshes += st.ahead_refreshes;
         sum.snapshots += st.snapshots;
         sum.part_snapshots += st.part_snapshots;
         sum.part_cards += st.part_cards;
@@ -433,6 +436,8 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
         i_ms += ms;
         i_times.push_back(ms);
         deferred += st.deferred_refreshes;
+        ahead += st.ahead_refreshes;
+        snapshot_frames += st.snapshots > 0 || st.part_snapshots > 0 ? 1 : 0;
         // st.characters: the drawn ones (the models' characters not culled).
         short_lived += st.characters > 0 ? static_cast<double>(st.short_lived_geometry) / st.characters : 0.0;
         out.snapshots_max = std::max(out.snapshots_max, st.part_cards > 0 ? st.part_snapshots : st.snapshots);
@@ -500,6 +505,8 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   out.snapshot_triangles = tri_s / n;
   out.part_cards = cards / n;
   out.deferred_refreshes = deferred / n;
+  out.ahead_refreshes = ahead / n;
+  out.snapshot_frames = snapshot_frames / n;
   out.short_lived_geometry = short_lived / n;
   out.quad_texels = quad_texels / n;
   out.drawn_quad_texels = drawn_frames ? drawn_texels / drawn_frames : 0.0;

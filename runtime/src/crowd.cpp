@@ -310,6 +310,8 @@ void FramePlanner::Chunk::clear(std::size_t lods, std::size_t characters, std::s
   billboards.reserve(cards);
   pending.clear();
   pending.reserve(characters);
+  ahead.clear();
+  ahead.reserve(characters);
   deferred.clear();
   deferred.reserve(characters);
   pending_parts.clear();
@@ -452,6 +454,7 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
       float staleness = 0.0f;
       if (!refresh) {
         const float w = distance_weight(cc, glm::distance(ta, camera.eye), pixels);
+        float ahead = 0.0f;  // staleness of a fresh one, where it may be refreshed ahead
         if (cc.view_test) {
           const float thr = std::min(glm::radians(cc.view_threshold_deg) * w, 3.14159265f);
           const float cthr = w == 1.0f ? cos_view : std::cos(thr);
@@ -461,17 +464,25 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
             refresh = true;
             ++st.view_refreshes;
             if (budget) staleness = std::acos(std::clamp(c, -1.0f, 1.0f)) / std::max(thr, 1e-6f);
+          } else if (fs.ahead && thr > 0.0f && c < std::cos(thr * cc.ahead_fraction)) {
+            ahead = std::acos(std::clamp(c, -1.0f, 1.0f)) / thr;
           }
         }
         if (cc.posture_test && (budget || !refresh) && posture_changed(cs.posture, posture, cc.posture_threshold * w)) {
           if (!refresh) ++st.posture_refreshes;
           refresh = true;
           if (budget) staleness = std::max(staleness, posture_staleness(cs.posture, posture, cc.posture_threshold * w));
+        } else if (fs.ahead && !refresh && cc.posture_test && cc.posture_threshold > 0.0f) {
+          ahead = std::max(ahead, posture_staleness(cs.posture, posture, cc.posture_threshold * w));
         }
+        if (!refresh && out.ahead && ahead >= cc.ahead_fraction)
+          out.ahead->push_back(PendingRefresh{ahead, static_cast<std::uint32_t>(i),
+                                              static_cast<std::uint32_t>(out.billboards->size())});
+        if (out.ahead_now) refresh = true;
       } else if (!cs.valid) {
         ++st.new_snapshots;
       }
-      if (config_.short_lived_as_geometry && refresh && !must && !budget && cs.taken + 1 == fs.frame) {
+      if (config_.short_lived_as_geometry && refresh && !must && !budget && !out.ahead_now && cs.taken + 1 == fs.frame) {
         // Geometry when its last snapshot is stale one frame on, and so on while the posture or
         // the view changes past the thresholds from each frame to the next (the cached state
         // moves on every frame); a snapshot at the first frame where neither does. Leaving it at
@@ -619,8 +630,10 @@ std::size_t FramePlanner::begin_frame(const Crowd& crowd, const SceneCamera& cam
   for (int w = 0; w < config_.windows.count; ++w) fs.window_lod[w] = lod_for(static_cast<float>(config_.windows.size[w]), camera.height);
 
   fs.budget = cc.refresh_budget > 0 && parts_ == 1;
+  fs.ahead = cc.ahead_fraction > 0.0f && cc.ahead_fraction < 1.0f && cc.ahead_count > 0 && parts_ == 1;
   budget_left_ = cc.refresh_budget;
   pending_.clear();
+  ahead_.clear();
   pending_parts_.clear();
   part_jobs_.clear();
   if (parts_ > 1) refreshed_.assign(n, 0);
@@ -657,7 +670,8 @@ void FramePlanner::plan_chunk(std::size_t c) {
   const std::size_t first = n * c / fr.chunks, end = n * (c + 1) / fr.chunks;
   k.clear(model_->lods.size(), end - first, (end - first) * static_cast<std::size_t>(parts_));
   const Out o{&k.geometry,    k.sink(),    &k.billboards, &k.pending,       &k.st,
-              &k.budget_used, &k.deferred, false,          &k.pending_parts, &k.part_jobs};
+              &k.budget_used, &k.deferred, false,          fs.ahead ? &k.ahead : nullptr, false,
+              &k.pending_parts, &k.part_jobs};
   for (std::size_t i = first; i < end; ++i) plan_character(i, crowd[i], fs, o);
 }
 
@@ -716,8 +730,9 @@ const FramePlan& FramePlanner::end_frame() {
   const FrameSetup& fs = fr.setup;
   FrameStats& st = fr.st;
   int& budget_used = fr.budget_used;
-  const Out serial{&plan_.geometry, SnapshotSink{&plan_.snapshots}, &plan_.billboards, &pending_,       &st,
-                   &budget_used,    nullptr,                         false,             &pending_parts_, &part_jobs_};
+  const Out serial{&plan_.geometry,           SnapshotSink{&plan_.snapshots}, &plan_.billboards, &pending_, &st,
+                   &budget_used,              nullptr,                         false,
+                   fs.ahead ? &ahead_ : nullptr, false,                         &pending_parts_,   &part_jobs_};
   if (fr.chunks > 0) {
     const std::size_t chunks = fr.chunks;
     for (std::size_t c = 0; c < chunks; ++c) {
@@ -730,6 +745,10 @@ const FramePlan& FramePlanner::end_frame() {
       for (PendingRefresh& r : k.pending) {
         r.billboard += base;
         pending_.push_back(r);
+      }
+      for (PendingRefresh& r : k.ahead) {
+        r.billboard += base;
+        ahead_.push_back(r);
       }
       const auto job_base = static_cast<std::uint32_t>(part_jobs_.size());
       for (PendingPart& r : k.pending_parts) {
@@ -763,7 +782,7 @@ const FramePlan& FramePlanner::end_frame() {
       Chunk& k = chunks_[c];
       const std::size_t refreshes = take * (c + 1) / chunks - take * c / chunks;  // a card each
       k.clear(model_->lods.size(), refreshes, refreshes);
-      const Out o{&k.geometry, k.sink(), &k.billboards, nullptr, &k.st, &k.budget_used, nullptr, true};
+      const Out o{&k.geometry, k.sink(), &k.billboards, nullptr, &k.st, &k.budget_used, nullptr, true, nullptr, false};
       for (std::size_t j = take * c / chunks, e = take * (c + 1) / chunks; j < e; ++j)
         plan_character(pending_[j].order, crowd[pending_[j].order], fs, o);
     };
@@ -783,6 +802,31 @@ const FramePlan& FramePlanner::end_frame() {
       st.snapshot_triangles += k.st.snapshot_triangles;
     }
     st.deferred_refreshes = static_cast<int>(pending_.size() - take);
+    budget_left_ -= static_cast<int>(take);
+  }
+  // Refreshes ahead: only in a frame that takes snapshots anyway, within the budget's rest.
+  if (!ahead_.empty() && st.snapshots > 0) {
+    const int room = fs.budget ? std::min(budget_left_, config_.cache.ahead_count) : config_.cache.ahead_count;
+    const std::size_t take = stalest_first(ahead_, room);
+    if (take > 0) {
+      if (chunks_.empty()) chunks_.resize(1);
+      Chunk& k = chunks_[0];
+      k.clear(model_->lods.size(), take, take);
+      const Out o{&k.geometry, k.sink(), &k.billboards, nullptr, &k.st, &k.budget_used, nullptr, true, nullptr, true};
+      for (std::size_t j = 0; j < take; ++j) {
+        const CacheState& before = cache_[ahead_[j].order];
+        st.quad_texels -= rect_texels(before.rect, before.window.size);
+        plan_character(ahead_[j].order, crowd[ahead_[j].order], fs, o);
+      }
+      assert(k.billboards.size() == take && k.st.snapshots == static_cast<int>(take));
+      for (std::size_t j = 0; j < take; ++j) plan_.billboards[ahead_[j].billboard] = k.billboards[j];
+      k.join_snapshots(plan_.snapshots);
+      st.quad_texels += k.st.quad_texels;
+      st.snapshots += k.st.snapshots;
+      st.snapshot_triangles += k.st.snapshot_triangles;
+      st.ahead_refreshes = static_cast<int>(take);
+      budget_left_ -= static_cast<int>(take);
+    }
   }
   if (!pending_parts_.empty()) {
     const std::size_t take = stalest_first(pending_parts_, budget_left_);

@@ -379,6 +379,67 @@ TEST(FramePlanner, RefreshBudgetServesTheStalestFirst) {
   EXPECT_EQ(f.deferred_refreshes, 3);
 }
 
+// Refreshes ahead (CacheConfig::ahead_fraction): a frame that takes a snapshot anyway also
+// refreshes the impostors past the fraction of their thresholds, the stalest first, up to
+// ahead_count; a frame with no stale impostor takes none. View test at 10 degrees, fraction 0.7.
+TEST(FramePlanner, RefreshAheadGathersRefreshesIntoFramesThatTakeSnapshots) {
+  Model m = tiny_model();
+  Crowd crowd = standing_row(m, 5, 2.0f);
+  ImpostorConfig cfg = view_test_only(10.0f);
+  cfg.cache.ahead_fraction = 0.7f;
+  cfg.cache.ahead_count = 2;
+  FramePlanner planner(m, cfg);
+  const SceneCamera cam = facing_camera(30.0f);
+  EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.snapshots, 5);  // new
+  // Turned by 0, 9, 8, 5 and 7.5 degrees: none stale, so no snapshot, none ahead either.
+  const float turn[5] = {0.0f, 9.0f, 8.0f, 5.0f, 7.5f};
+  for (int i = 0; i < 5; ++i) crowd[i].yaw = glm::radians(turn[i]);
+  auto a = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(a.snapshots, 0);
+  EXPECT_EQ(a.ahead_refreshes, 0);
+  // Character 0 turns 12 degrees: stale. With it go the two stalest past 0.7 (0.9 and 0.8, not
+  // 0.75: the count is 2), not the one at 0.5.
+  crowd[0].yaw = glm::radians(12.0f);
+  const FramePlan& b = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+  EXPECT_EQ(b.stats.view_refreshes, 1);
+  EXPECT_EQ(b.stats.ahead_refreshes, 2);
+  EXPECT_EQ(b.stats.snapshots, 3);
+  EXPECT_EQ(b.billboards.size(), 5u);
+  std::size_t snapshots = 0;
+  for (const auto& l : b.snapshots) snapshots += l.size();
+  EXPECT_EQ(snapshots, 3u);
+  // Those refreshed ahead are fresh now: 1 more degree keeps characters 1 and 2 far from their
+  // thresholds, while character 4 (7.5, never refreshed) is still only waiting.
+  crowd[1].yaw = glm::radians(10.0f);
+  crowd[2].yaw = glm::radians(9.0f);
+  auto c = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(c.snapshots, 0);
+  EXPECT_EQ(c.ahead_refreshes, 0);
+  // Character 0 stale again, count 4: character 4 (0.75) goes with it; 3 (0.5) does not.
+  planner.config().cache.ahead_count = 4;
+  crowd[0].yaw = glm::radians(24.0f);
+  auto d = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(d.snapshots, 2);
+  EXPECT_EQ(d.ahead_refreshes, 1);
+  // Within a refresh budget, those ahead take only what the stale ones leave: budget 2, three
+  // stale (characters 0, 1, 2 past 10 degrees), character 3 at 0.9: none ahead.
+  planner.config().cache.refresh_budget = 2;
+  crowd[0].yaw = glm::radians(36.0f);
+  crowd[1].yaw = glm::radians(21.0f);
+  crowd[2].yaw = glm::radians(20.0f);
+  crowd[3].yaw = glm::radians(9.0f);
+  auto e = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(e.snapshots, 2);
+  EXPECT_EQ(e.deferred_refreshes, 1);
+  EXPECT_EQ(e.ahead_refreshes, 0);
+  // One stale left (the deferred one): the budget's second refresh goes ahead, to character 3.
+  auto f = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(f.snapshots, 2);
+  EXPECT_EQ(f.deferred_refreshes, 0);
+  EXPECT_EQ(f.ahead_refreshes, 1);
+  EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.snapshots, 0);
+}
+
 template <typename V>
 bool bytes_equal(const V& a, const V& b) {
   return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(a[0])) == 0);
@@ -397,6 +458,7 @@ void expect_same_plan(const FramePlan& p, const FramePlan& ref) {
   EXPECT_EQ(p.stats.culled, ref.stats.culled);
   EXPECT_EQ(p.stats.snapshots, ref.stats.snapshots);
   EXPECT_EQ(p.stats.deferred_refreshes, ref.stats.deferred_refreshes);
+  EXPECT_EQ(p.stats.ahead_refreshes, ref.stats.ahead_refreshes);
   EXPECT_EQ(p.stats.part_cards, ref.stats.part_cards);
   EXPECT_EQ(p.stats.part_snapshots, ref.stats.part_snapshots);
   EXPECT_EQ(p.stats.view_refreshes, ref.stats.view_refreshes);
@@ -441,19 +503,24 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
   ASSERT_GE(crowd.size(), 5 * FramePlanner::kCharactersPerThread);
   // 200: the budget's refreshes planned on several threads too; -1: no budget, short-lived
   // snapshots drawn as geometry (a view threshold of 3 degrees, which most turning characters pass
-  // every frame).
-  for (int budget : {0, 40, 200, -1}) {
+  // every frame); -2: refreshes ahead (fraction 0.5, up to 30 a frame; their budget interplay is
+  // RefreshAheadGathersRefreshesIntoFramesThatTakeSnapshots's).
+  for (int budget : {0, 40, 200, -1, -2}) {
     ImpostorConfig cfg;
     cfg.cache.refresh_budget = std::max(budget, 0);
-    cfg.short_lived_as_geometry = budget < 0;
-    if (budget < 0) cfg.cache.view_threshold_deg = 3.0f;
+    cfg.short_lived_as_geometry = budget == -1;
+    if (budget == -1) cfg.cache.view_threshold_deg = 3.0f;
+    if (budget == -2) {
+      cfg.cache.ahead_fraction = 0.5f;
+      cfg.cache.ahead_count = 30;
+    }
     cfg.max_pages = 64;
     std::vector<FramePlanner> planners;
     for (unsigned threads : {1u, 2u, 5u}) {
       cfg.planner_threads = threads;
       planners.emplace_back(m, cfg);
     }
-    int changes = 0, deferred = 0, served = 0, most = 0, short_lived = 0;
+    int changes = 0, deferred = 0, served = 0, most = 0, short_lived = 0, ahead = 0;
     for (int f = 0; f < 12; ++f) {
       // The camera comes closer for four frames (windows change size), then stays (the budget
       // then serves stale impostors).
@@ -468,6 +535,7 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
       if (f > 4) served += ref.stats.view_refreshes > 0 ? ref.stats.snapshots : 0;
       if (ref.stats.deferred_refreshes > 0) most = std::max(most, ref.stats.snapshots);
       short_lived += ref.stats.short_lived_geometry;
+      ahead += ref.stats.ahead_refreshes;
       for (std::size_t k = 1; k < planners.size(); ++k) {
         SCOPED_TRACE(testing::Message() << "budget " << budget << ", frame " << f << ", planner " << k);
         const FramePlan& p = planners[k].plan(crowd, cam, t, RenderMode::kAuto);
@@ -485,7 +553,8 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
     if (budget > 0) {
       EXPECT_GT(deferred, 0);
     }
-    EXPECT_EQ(short_lived > 0, budget < 0);
+    EXPECT_EQ(short_lived > 0, budget == -1);
+    EXPECT_EQ(ahead > 0, budget == -2);
     if (budget >= 200) {  // a frame whose budget-reached refreshes took several threads
       EXPECT_GE(most, 2 * static_cast<int>(FramePlanner::kForcedPerThread));
     }

@@ -314,6 +314,7 @@ struct FrameStats {
   int atlas_fallbacks = 0;   // wanted an impostor, atlas full: drawn as geometry
   int posture_refreshes = 0, view_refreshes = 0, window_refreshes = 0, new_snapshots = 0;
   int deferred_refreshes = 0;  // stale impostors kept one more frame by CacheConfig::refresh_budget
+  int ahead_refreshes = 0;     // impostors refreshed before their thresholds (CacheConfig::ahead_fraction)
   // Characters drawn as geometry instead of a snapshot that would be drawn in one frame only
   // (ImpostorConfig::short_lived_as_geometry; counted in `geometry`, not in `snapshots`).
   int short_lived_geometry = 0;
@@ -459,6 +460,7 @@ class FramePlanner {
     glm::vec3 cam_right{0.0f}, cam_up{0.0f}, fwd{0.0f};
     float ppm1 = 0, cos_view = 0, switch_px = 0, page = 0, time = 0;
     bool impostor_mode = false, budget = false;
+    bool ahead = false;  // CacheConfig::ahead_fraction on (whole impostors)
     RenderMode mode = RenderMode::kAuto;
     std::uint32_t frame = 0;  // impostor frames planned so far, this one included
     std::array<int, 8> window_lod{};  // LOD of each window class
@@ -489,6 +491,9 @@ class FramePlanner {
     int* budget_used;
     std::vector<std::uint32_t>* deferred;
     bool forced = false;  // a stale impostor the budget reached: refreshed, not left pending
+    // Impostors past CacheConfig::ahead_fraction of their thresholds, not stale (null: not listed).
+    std::vector<PendingRefresh>* ahead = nullptr;
+    bool ahead_now = false;  // one of those, chosen: refreshed (with `forced`)
     // Part cards: stale cards held back for the budget, and their jobs (PendingPart::job indexes
     // `part_jobs`).
     std::vector<PendingPart>* pending_parts = nullptr;
@@ -507,6 +512,7 @@ class FramePlanner {
     }
     std::vector<BillboardGpu> billboards;
     std::vector<PendingRefresh> pending;
+    std::vector<PendingRefresh> ahead;
     std::vector<std::uint32_t> deferred;
     std::vector<PendingPart> pending_parts;
     std::vector<PartJob> part_jobs;
@@ -543,6 +549,7 @@ class FramePlanner {
   std::shared_ptr<WorkerPool> pool_;
   std::vector<Chunk> chunks_;
   std::vector<PendingRefresh> pending_;
+  std::vector<PendingRefresh> ahead_;  // CacheConfig::ahead_fraction's candidates this frame
   std::vector<PendingPart> pending_parts_;
   std::vector<PartJob> part_jobs_;
   std::vector<std::uint8_t> refreshed_;  // part cards: characters with a card refreshed this frame

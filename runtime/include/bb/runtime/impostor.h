@@ -125,6 +125,17 @@ struct CacheConfig {
   // the unit is a card (each card keeps the posture it was taken at, and its staleness is its tilt
   // over the view threshold or its posture change over the posture threshold).
   int refresh_budget = 0;
+  // Refreshes ahead, a crowd-level policy too: a frame that takes snapshots anyway (some impostor
+  // is stale or new) also refreshes up to `ahead_count` impostors whose staleness (as the budget
+  // measures it) is past `ahead_fraction` of their thresholds, the stalest first, so that the
+  // refreshes gather in fewer frames. A frame without a snapshot skips the snapshot pass and its
+  // fixed costs (the framebuffer switch, the state changes, the coverage pass and the wait for the
+  // snapshots before the quads). No impostor is drawn past its thresholds, and those refreshed
+  // ahead are younger than they would have been. Whole impostors only (part cards take snapshots
+  // in nearly every frame). 0: off; else in (0, 1). Within a refresh budget they take what it
+  // leaves.
+  float ahead_fraction = 0.0f;
+  int ahead_count = 4;
 };
 
 // Multiplier of the thresholds for a character `distance` metres from the eye, `pixels` tall on
