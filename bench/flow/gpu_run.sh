@@ -336,6 +336,19 @@ set_s35() {
   flow s35_main_boxes $C4 --frames 120 --gpu-stages --quad-fit boxes  # no coverage pass at all
   flow s35_sweep_view $C4 --frames 60 --sweep view
 }
+# Thirty-sixth session: refreshes ahead (--refresh-ahead) on a GPU, where a snapshot pass's fixed
+# costs (0.08 ms snapshots, 0.07 ms coverage for one or two snapshots at 20 humans on the H200) are
+# most of the impostor frame: alternated with off, the paper's 20 humans and 1,000.
+set_s36() {
+  for i in 1 2 3; do
+    for a in off 0.8; do
+      flow s36_main_a${a}_$i $C4 --frames 120 --gpu-stages --refresh-ahead $a
+      flow s36_v8_a${a}_$i $C4 --frames 120 --posture off --view 8 --refresh-ahead $a
+      flow s36_h1000_a${a}_$i $C4 --frames 40 --humans 1000 --refresh-ahead $a
+    done
+  done
+  for a in off 0.8; do flow s36_sweep_view_a$a $C4 --frames 60 --sweep view --refresh-ahead $a; done
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"
