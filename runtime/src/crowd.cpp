@@ -767,40 +767,10 @@ const FramePlan& FramePlanner::end_frame() {
   }
   budget_left_ -= budget_used;
   // The budget left goes to the stalest; the others wait (section 7, item 1). The chosen ones are
-  // planned again, forced: the same tests, now refreshed (their snapshot, cache state and quad),
-  // in chunks on the threads like the crowd, joined in the order chosen.
+  // planned again, forced: the same tests, now refreshed (their snapshot, cache state and quad).
   if (!pending_.empty()) {
     const std::size_t take = stalest_first(pending_, budget_left_);
-    for (std::size_t k = 0; k < take; ++k) {
-      const CacheState& before = cache_[pending_[k].order];
-      st.quad_texels -= rect_texels(before.rect, before.window.size);
-    }
-    const unsigned used = static_cast<unsigned>(std::clamp<std::size_t>(take / kForcedPerThread, 1, planner_threads()));
-    const std::size_t chunks = take == 0 ? 0 : std::min<std::size_t>(take, 4 * std::size_t{used});
-    if (chunks_.size() < chunks) chunks_.resize(chunks);
-    auto run_chunk = [&](std::size_t c) {
-      Chunk& k = chunks_[c];
-      const std::size_t refreshes = take * (c + 1) / chunks - take * c / chunks;  // a card each
-      k.clear(model_->lods.size(), refreshes, refreshes);
-      const Out o{&k.geometry, k.sink(), &k.billboards, nullptr, &k.st, &k.budget_used, nullptr, true, nullptr, false};
-      for (std::size_t j = take * c / chunks, e = take * (c + 1) / chunks; j < e; ++j)
-        plan_character(pending_[j].order, crowd[pending_[j].order], fs, o);
-    };
-    if (used > 1) {
-      pool_->run(chunks, run_chunk, used);
-    } else {
-      for (std::size_t c = 0; c < chunks; ++c) run_chunk(c);
-    }
-    for (std::size_t c = 0; c < chunks; ++c) {
-      const Chunk& k = chunks_[c];
-      const std::size_t first = take * c / chunks;
-      assert(k.billboards.size() == take * (c + 1) / chunks - first && k.st.snapshots == static_cast<int>(k.billboards.size()));
-      for (std::size_t j = 0; j < k.billboards.size(); ++j) plan_.billboards[pending_[first + j].billboard] = k.billboards[j];
-      k.join_snapshots(plan_.snapshots);
-      st.quad_texels += k.st.quad_texels;
-      st.snapshots += k.st.snapshots;
-      st.snapshot_triangles += k.st.snapshot_triangles;
-    }
+    refresh_listed(pending_, take, false);
     st.deferred_refreshes = static_cast<int>(pending_.size() - take);
     budget_left_ -= static_cast<int>(take);
   }
@@ -808,25 +778,9 @@ const FramePlan& FramePlanner::end_frame() {
   if (!ahead_.empty() && st.snapshots > 0) {
     const int room = fs.budget ? std::min(budget_left_, config_.cache.ahead_count) : config_.cache.ahead_count;
     const std::size_t take = stalest_first(ahead_, room);
-    if (take > 0) {
-      if (chunks_.empty()) chunks_.resize(1);
-      Chunk& k = chunks_[0];
-      k.clear(model_->lods.size(), take, take);
-      const Out o{&k.geometry, k.sink(), &k.billboards, nullptr, &k.st, &k.budget_used, nullptr, true, nullptr, true};
-      for (std::size_t j = 0; j < take; ++j) {
-        const CacheState& before = cache_[ahead_[j].order];
-        st.quad_texels -= rect_texels(before.rect, before.window.size);
-        plan_character(ahead_[j].order, crowd[ahead_[j].order], fs, o);
-      }
-      assert(k.billboards.size() == take && k.st.snapshots == static_cast<int>(take));
-      for (std::size_t j = 0; j < take; ++j) plan_.billboards[ahead_[j].billboard] = k.billboards[j];
-      k.join_snapshots(plan_.snapshots);
-      st.quad_texels += k.st.quad_texels;
-      st.snapshots += k.st.snapshots;
-      st.snapshot_triangles += k.st.snapshot_triangles;
-      st.ahead_refreshes = static_cast<int>(take);
-      budget_left_ -= static_cast<int>(take);
-    }
+    refresh_listed(ahead_, take, true);
+    st.ahead_refreshes = static_cast<int>(take);
+    budget_left_ -= static_cast<int>(take);
   }
   if (!pending_parts_.empty()) {
     const std::size_t take = stalest_first(pending_parts_, budget_left_);
@@ -861,6 +815,46 @@ const FramePlan& FramePlanner::end_frame() {
   plan_.stats = st;
   if (fs.impostor_mode) last_snapshots_ = st.snapshots;
   return plan_;
+}
+
+// Plans the first `take` impostors of `list` again, forced (`ahead`: refreshed although their
+// tests passed), in chunks on the threads like the crowd, and swaps their billboards and snapshots
+// into the plan in the list's order.
+void FramePlanner::refresh_listed(const std::vector<PendingRefresh>& list, std::size_t take, bool ahead) {
+  if (take == 0) return;
+  const Crowd& crowd = *frame_.crowd;
+  const FrameSetup& fs = frame_.setup;
+  FrameStats& st = frame_.st;
+  for (std::size_t k = 0; k < take; ++k) {
+    const CacheState& before = cache_[list[k].order];
+    st.quad_texels -= rect_texels(before.rect, before.window.size);
+  }
+  const unsigned used = static_cast<unsigned>(std::clamp<std::size_t>(take / kForcedPerThread, 1, planner_threads()));
+  const std::size_t chunks = std::min<std::size_t>(take, 4 * std::size_t{used});
+  if (chunks_.size() < chunks) chunks_.resize(chunks);
+  auto run_chunk = [&](std::size_t c) {
+    Chunk& k = chunks_[c];
+    const std::size_t refreshes = take * (c + 1) / chunks - take * c / chunks;
+    k.clear(model_->lods.size(), refreshes, refreshes);
+    const Out o{&k.geometry, k.sink(), &k.billboards, nullptr, &k.st, &k.budget_used, nullptr, true, nullptr, ahead};
+    for (std::size_t j = take * c / chunks, e = take * (c + 1) / chunks; j < e; ++j)
+      plan_character(list[j].order, crowd[list[j].order], fs, o);
+  };
+  if (used > 1) {
+    pool_->run(chunks, run_chunk, used);
+  } else {
+    for (std::size_t c = 0; c < chunks; ++c) run_chunk(c);
+  }
+  for (std::size_t c = 0; c < chunks; ++c) {
+    const Chunk& k = chunks_[c];
+    const std::size_t first = take * c / chunks;
+    assert(k.billboards.size() == take * (c + 1) / chunks - first && k.st.snapshots == static_cast<int>(k.billboards.size()));
+    for (std::size_t j = 0; j < k.billboards.size(); ++j) plan_.billboards[list[first + j].billboard] = k.billboards[j];
+    k.join_snapshots(plan_.snapshots);
+    st.quad_texels += k.st.quad_texels;
+    st.snapshots += k.st.snapshots;
+    st.snapshot_triangles += k.st.snapshot_triangles;
+  }
 }
 
 // The coverage pass reads each fitted snapshot's texels once (ImpostorConfig::

@@ -533,6 +533,7 @@ class FramePlanner {
   std::size_t begin_frame(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode);
   void plan_chunk(std::size_t c);
   const FramePlan& end_frame();
+  void refresh_listed(const std::vector<PendingRefresh>& list, std::size_t take, bool ahead);
   // The frame being planned.
   struct Frame {
     const Crowd* crowd = nullptr;
