@@ -949,6 +949,7 @@ void Renderer::Impl::take_snapshots(const FramePlan& plan, bool time_stages) {
 
 void Renderer::Impl::take_snapshot_passes(const FramePlan& plan) {
   fits_due = false;
+  snapshot_scratch.clear();  // none this frame: no coverage step either (it reran over the last ones)
   const int nlods = static_cast<int>(lods.size());
   due.clear();
   for (int lod = 0; lod < static_cast<int>(plan.snapshots.size()); ++lod)
