@@ -464,7 +464,7 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
             refresh = true;
             ++st.view_refreshes;
             if (budget) staleness = std::acos(std::clamp(c, -1.0f, 1.0f)) / std::max(thr, 1e-6f);
-          } else if (fs.ahead && thr > 0.0f && c < std::cos(thr * cc.ahead_fraction)) {
+          } else if (fs.ahead && thr > 0.0f && c < (w == 1.0f ? fs.cos_ahead : std::cos(thr * cc.ahead_fraction))) {
             ahead = std::acos(std::clamp(c, -1.0f, 1.0f)) / thr;
           }
         }
@@ -623,6 +623,7 @@ std::size_t FramePlanner::begin_frame(const Crowd& crowd, const SceneCamera& cam
   if (fs.impostor_mode) ++fs.frame;
   const CacheConfig& cc = config_.cache;
   fs.cos_view = std::cos(glm::radians(cc.view_threshold_deg));
+  fs.cos_ahead = std::cos(std::min(glm::radians(cc.view_threshold_deg), 3.14159265f) * cc.ahead_fraction);
   fs.switch_px = static_cast<float>(config_.windows.size[0]) * config_.geometry_switch;
   fs.page = static_cast<float>(atlas_.page_size());
   // LOD of each window class (section 4.3: the snapshot uses the level that matches the window).

@@ -459,6 +459,7 @@ class FramePlanner {
     std::array<glm::vec4, 6> planes{};  // frustum, world
     glm::vec3 cam_right{0.0f}, cam_up{0.0f}, fwd{0.0f};
     float ppm1 = 0, cos_view = 0, switch_px = 0, page = 0, time = 0;
+    float cos_ahead = 1;  // of CacheConfig::ahead_fraction of the (unweighted) view threshold
     bool impostor_mode = false, budget = false;
     bool ahead = false;  // CacheConfig::ahead_fraction on (whole impostors)
     RenderMode mode = RenderMode::kAuto;
