@@ -437,7 +437,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
         i_times.push_back(ms);
         deferred += st.deferred_refreshes;
         ahead += st.ahead_refreshes;
-        snapshot_frames += st.snapshots > 0 || st.part_snapshots > 0 ? 1 : 0;
+        snapshot_frames += st.snapshots > 0 ? 1 : 0;  // with part cards: characters with a card refreshed
         // st.characters: the drawn ones (the models' characters not culled).
         short_lived += st.characters > 0 ? static_cast<double>(st.short_lived_geometry) / st.characters : 0.0;
         out.snapshots_max = std::max(out.snapshots_max, st.part_cards > 0 ? st.part_snapshots : st.snapshots);

@@ -968,7 +968,6 @@ void Renderer::Impl::take_snapshot_passes(const FramePlan& plan) {
     });
   else
     std::sort(due.begin(), due.end(), [](const Due& a, const Due& b) { return a.lod != b.lod ? a.lod < b.lod : a.part < b.part; });
-  snapshot_scratch.clear();
   scratch_lod.clear();
   scratch_part.clear();
   for (const Due& u : due) {
