@@ -858,7 +858,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "Most threads planning each frame (0: one per hardware thread). A crowd is planned on threads from 512 units of work, one thread per 512 at most: a character is one unit (with part cards one a card), and each impostor the previous frame refreshed eight more; the plan is the same")
       ->capture_default_str();
   cmd->add_flag("--gpu-stages", a->gpu_stages,
-                "Also time the renderer's stages on the GPU (snapshots, coverage, geometry, impostors; gpu_ms_stages in the report; on llvmpipe the timestamps serialise the stages and slow the frame)");
+                "Also time the renderer's stages on the GPU (snapshots, coverage, geometry, impostors; gpu_ms_stages in the report; on llvmpipe the timestamps serialise the stages and slow the frame; several models are then drawn model after model, their blended impostors not ordered across the models)");
   cmd->add_option("--refresh-budget", a->refresh_budget,
                   "At most N impostors refreshed per frame, the stalest first (0: no limit; the paper's future work; "
                   "with several models, split between them, at least one each)")

@@ -197,6 +197,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   out.short_lived_as_geometry = config.short_lived_as_geometry && s.refresh_budget == 0;
   // One renderer, planner and crowd per model; human i is of model i % models.size().
   std::vector<std::unique_ptr<Renderer>> renderers;
+  std::vector<Renderer*> renderer_ptrs;  // the same, for Renderer::draw_many
   std::vector<std::unique_ptr<FramePlanner>> planners;
   std::vector<Crowd> crowds;
   for (int m = 0; m < nm; ++m) {
@@ -211,6 +212,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
     auto r = Renderer::create(*models[m], config);
     if (!r) return r.error();
     renderers.push_back(std::move(*r));
+    renderer_ptrs.push_back(renderers.back().get());
     out.coverage_group = renderers.back()->coverage_group();
     planners.push_back(std::make_unique<FramePlanner>(*models[m], config));
     crowds.emplace_back(*models[m]);
@@ -348,20 +350,9 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
       FramePlanner::plan_many(planner_ptrs, crowd_ptrs, cam, t, mode);
       for (int m = 0; m < nm; ++m) plans[m] = &planners[m]->plan_of_last_frame();
       auto t1 = Clock::now();
-      if (nm == 1 || draw_options.time_stages) {
-        for (int m = 0; m < nm; ++m) renderers[m]->draw(*plans[m], draw_options);
-      } else {
-        // Every model's snapshots first, then every model's characters: a snapshot pass between
-        // two models' quads would make the driver finish the frame's drawing so far (llvmpipe:
-        // it flushes on each change of framebuffer; flow test bed, our body and 3 variants, the
-        // impostor frame 2.35 -> 2.15 ms). With --gpu-stages each renderer draws once, so that
-        // its stage times are one draw's.
-        DrawOptions snap = draw_options, rest = draw_options;
-        snap.draw_geometry = snap.draw_impostors = false;
-        rest.take_snapshots = false;
-        for (int m = 0; m < nm; ++m) renderers[m]->draw(*plans[m], snap);
-        for (int m = 0; m < nm; ++m) renderers[m]->draw(*plans[m], rest);
-      }
+      // Every model's snapshots, then geometry, then the impostors in one back-to-front order across
+      // the models (Renderer::draw_many; with --gpu-stages model after model).
+      Renderer::draw_many(renderer_ptrs, plans, draw_options);
       auto t2 = Clock::now();
       gpu_finish();
       auto t3 = Clock::now();

@@ -12,6 +12,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "bb/result.h"
@@ -116,6 +117,21 @@ class Renderer {
   // left bound), viewport, depth test on (LESS, writes on), blending, alpha to coverage and face
   // culling off (multisampling as found).
   void draw(const FramePlan& plan, const DrawOptions& options = {});
+  // One frame of several models' crowds (renderers[k] draws plans[k], planned with one camera,
+  // e.g. by FramePlanner::plan_many), as draw() would each, but by stage: every renderer's
+  // snapshots, then every renderer's geometry, then the impostors. Blended impostors
+  // (ImpostorEdges::kBlend) of different models that overlap on screen are then drawn back to front
+  // across the models, not model after model: each model's quads are sorted into layers
+  // (kMaxImpostorLayers at most) so that of two overlapping quads of different models the farther
+  // is drawn in an earlier layer, and each layer is a draw per model. (Model after model, a nearer
+  // quad drawn first hides the farther quad of the next model under its soft edge, whole impostors
+  // writing depth there; part cards, which write none, are wholly painted over. Flow test bed, our
+  // four bodies, every impostor fresh: 26.73 -> 27.10 dB; part cards at 8 degrees, 25.59 -> 25.83
+  // dB.) With DrawOptions::time_stages each renderer draws its whole frame in turn instead, so that
+  // its stage times are its own.
+  static void draw_many(std::span<Renderer* const> renderers, std::span<const FramePlan* const> plans,
+                        const DrawOptions& options = {});
+  static constexpr int kMaxImpostorLayers = 8;
   // The directional light (world, towards the light; normalised here; default (0.4, 0.8, 0.6)).
   // Geometry and new snapshots take it at once; impostors already in the atlas keep the light
   // they were taken under unless the renderer relights them (ImpostorConfig::relight).
