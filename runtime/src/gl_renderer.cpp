@@ -660,25 +660,25 @@ struct StreamBuffer {
   }
 };
 
+// draw_many: quads under this many pixels high keep no order across models (see there); part
+// cards under a quarter of it (a body part of a character about that high: the flow test bed's
+// part cards at 8 degrees keep 25.83 dB with 4 or 8 pixels, 25.73 dB with 16).
+constexpr float kLayerMinPixels = 16.0f;
+constexpr float kLayerMinCardPixels = 4.0f;
+
 // The screen rectangle (pixels, x0, y0, x1, y1) that holds quad `b` as kBillboardVs places it
 // (the planner's rectangle of the window, which holds the fitted one), for `camera`'s view and
 // projection `viewproj`. A corner at or behind the eye gives the whole screen.
-// draw_many: quads under this many pixels high keep no order across models (see there).
-constexpr float kLayerMinPixels = 16.0f;
-
 glm::vec4 quad_screen_rect(const BillboardGpu& b, const SceneCamera& camera, const glm::mat4& viewproj) {
   const glm::vec3 ta(b.ta_half);
   glm::vec3 ax, ay;
   if (b.axis_x.w > 0.5f) {
     ax = glm::vec3(b.axis_x);
     ay = glm::vec3(b.axis_y);
-  } else {
-    const glm::vec3 vo = glm::normalize(ta - camera.eye);
-    glm::vec3 h = glm::cross(vo, camera.up);
-    if (glm::length(h) < 1e-6f) h = glm::cross(vo, glm::vec3(0.0f, 0.0f, 1.0f));
-    const glm::vec3 ho = glm::normalize(h);
-    ax = b.ta_half.w * ho;
-    ay = b.ta_half.w * glm::cross(ho, vo);
+  } else {  // facing the eye: the snapshot camera's Ho and Uo (section 4.2), as the shader makes them
+    const SnapshotCamera sc = make_snapshot_camera(ta, camera.eye, camera.up, b.ta_half.w);
+    ax = b.ta_half.w * sc.ho;
+    ay = b.ta_half.w * sc.uo;
   }
   const float w = static_cast<float>(camera.width), hgt = static_cast<float>(camera.height);
   glm::vec2 lo(1e30f), hi(-1e30f);
@@ -843,6 +843,7 @@ struct Renderer::Impl {
     int samples = 1;     // the bound framebuffer's samples
     bool cards = false;  // the plan's quads are part cards
   };
+  std::vector<ImpostorPass> many_pass;  // draw_many: each renderer's pass (in the first renderer's)
   static ImpostorPass impostor_pass(ImpostorEdges edges, bool cards) {
     ImpostorPass p;
     p.cards = cards;
@@ -1668,23 +1669,25 @@ void Renderer::draw_many(std::span<Renderer* const> renderers, std::span<const F
   d0.many_quads.clear();
   d0.many_depth.clear();
   d0.many_index.clear();  // each quad's index in its plan (its model: many_quads[g].model)
-  // Quads under kLayerMinPixels high are not placed on screen: they go first, in layer 0 (far
-  // away as they mostly are), and the others from layer 1 on. A crowd of 10,000 then keeps a draw
-  // a model (flow test bed, our four bodies: 8 layers and 32 draws cost 5-6 ms a frame on
+  // Quads under kLayerMinPixels high (part cards: kLayerMinCardPixels) are not placed on screen:
+  // they go first, in layer 0 (far away as they mostly are), and the others from layer 1 on. A
+  // crowd of 10,000 then keeps a draw a model (flow test bed, our four bodies: 8 layers and 32 draws cost 5-6 ms a frame on
   // llvmpipe, for the same pictures to 0.001 dB).
   bool any_small = false;
-  for (std::size_t k = 0; k < n; ++k)
+  for (std::size_t k = 0; k < n; ++k) {
+    const float min_pixels = plans[k]->stats.part_cards > 0 ? kLayerMinCardPixels : kLayerMinPixels;
     for (std::size_t i = 0; i < plans[k]->billboards.size(); ++i) {
       const BillboardGpu& b = plans[k]->billboards[i];
       const float depth = glm::dot(glm::vec3(b.ta_half) - camera.eye, fwd);
       const bool small = depth > camera.near_plane &&
-                         (b.rect.w - b.rect.y) * b.ta_half.w * camera.pixels_per_metre(depth) < kLayerMinPixels;
+                         (b.rect.w - b.rect.y) * b.ta_half.w * camera.pixels_per_metre(depth) < min_pixels;
       any_small = any_small || small;
       d0.many_quads.push_back(
           LayerQuad{static_cast<int>(k), small ? glm::vec4(0.0f) : quad_screen_rect(b, camera, viewproj), small ? 0 : 1});
       d0.many_depth.push_back(-depth);
       d0.many_index.push_back(static_cast<std::uint32_t>(i));
     }
+  }
   if (!any_small)
     for (LayerQuad& q : d0.many_quads) q.min_layer = 0;
   std::vector<std::uint32_t>& order = d0.many_order;
@@ -1710,11 +1713,12 @@ void Renderer::draw_many(std::span<Renderer* const> renderers, std::span<const F
   glDepthFunc(GL_LESS);
   glDisable(GL_CULL_FACE);
   glViewport(0, 0, camera.width, camera.height);
-  std::vector<Impl::ImpostorPass> pass(n);
+  std::vector<Impl::ImpostorPass>& pass = d0.many_pass;  // one framebuffer: one mode; cards per plan
+  pass.assign(n, Impl::impostor_pass(options.edges, false));
   for (std::size_t k = 0; k < n; ++k) {
     Impl& d = *renderers[k]->impl_;
     if (d.billboard_scratch.empty()) continue;
-    pass[k] = Impl::impostor_pass(options.edges, plans[k]->stats.part_cards > 0);
+    pass[k].cards = plans[k]->stats.part_cards > 0;
     d.upload_impostors(pass[k], *plans[k], d.billboard_scratch.data(), d.billboard_scratch.size(), viewproj);
   }
   // Renderers whose impostor programs are alike (the same config, and the same light where they
