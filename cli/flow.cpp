@@ -84,6 +84,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["snapshots_max"] = r.snapshots_max;
   j["psnr_db"] = r.psnr_db;
   j["psnr_min_db"] = r.psnr_min_db;
+  j["psnr_ref_db"] = r.psnr_ref_db;
   j["ssim"] = r.ssim;
   j["impostor_edges"] = s.impostor_edges;
   j["relight"] = s.relight ? "on" : "off";
@@ -267,7 +268,9 @@ ordered_json check_targets(const TargetRuns& runs) {
     for (const auto& [name, run] : runs.quality) {
       const double db = (*run)["psnr_db"].get<double>(), x = (*run)["speedup"].get<double>();
       met |= db >= 28.0 && x >= 3.0;
-      measured += (measured.empty() ? "" : "; ") + name + " " + decimal(db, 1) + " dB at " + decimal(x) + "x";
+      measured += (measured.empty() ? "" : "; ") + name + " " + decimal(db, 1) + " dB";
+      if (run->contains("psnr_ref_db")) measured += " (" + decimal((*run)["psnr_ref_db"].get<double>(), 1) + " over the geometry's pixels)";
+      measured += " at " + decimal(x) + "x";
     }
     row("view threshold 8 degrees: PSNR at least 28 dB against geometry (at the 3x of 8 degrees)", measured, met);
   }
@@ -566,7 +569,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
                                         : std::vector<float>{0, 1, 2, 3, 5, 8, 12, 17, 20, 30};
     ordered_json sweep = ordered_json::array();
     std::ostringstream csv;
-    csv << "threshold,geometry_ms,impostor_ms,ratio,speedup,refresh_fraction,psnr_db,ssim\n";
+    csv << "threshold,geometry_ms,impostor_ms,ratio,speedup,refresh_fraction,psnr_db,ssim,psnr_ref_db\n";
     Series ratio{"impostor time / geometry time", {}, {}, 0xd62728}, refresh{"refresh fraction", {}, {}, 0x1f77b4};
     Series psnr{"PSNR (dB)", {}, {}, 0x2ca02c};
     FlowSettings ss = s;
@@ -581,7 +584,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
       sweep.push_back(j);
       csv << v << "," << r->geometry_ms << "," << r->impostor_ms << "," << r->ratio << ","
           << (r->ratio > 0 ? 1 / r->ratio : 0) << "," << r->refresh_fraction << "," << r->psnr_db << "," << r->ssim
-          << "\n";
+          << "," << r->psnr_ref_db << "\n";
       ratio.x.push_back(v);
       ratio.y.push_back(r->ratio);
       refresh.x.push_back(v);
@@ -881,7 +884,9 @@ void add_flow_command(CLI::App& app, int* status) {
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
   cmd->add_option("-o,--output", a->out, "Output folder")->capture_default_str();
-  cmd->add_flag("--json", a->json, "Print the report as one JSON object on stdout");
+  cmd->add_flag("--json", a->json,
+                "Print the report as one JSON object on stdout (psnr_db: over pixels covered in either frame; psnr_ref_db: "
+                "the same squared error over the pixels the geometry covers, which soft impostor edges cannot dilute)");
   cmd->callback([=] { *status = run_flow_command(*a, nullptr); });
 }
 

@@ -141,6 +141,10 @@ struct FlowResult {
   double refresh_fraction = 0;              // mean snapshots / impostors
   double psnr_db = 0, ssim = 0;             // means over compared frames
   double psnr_min_db = 0;
+  // Mean over compared frames of psnr_reference: the squared error of every pixel covered in
+  // either image over the pixels the geometry frame covers, which an impostor's faint halo cannot
+  // raise as it can psnr_db (whose mean takes the halo's pixels in).
+  double psnr_ref_db = 0;
   // Where the squared error comes from, over the compared frames (premultiplied RGB as in
   // psnr_db): pixels covered in both images, pixels partly covered in at least one (edges), and
   // pixels covered in one image only. mse per channel, pixels per frame.

@@ -312,7 +312,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   cam.far_plane = cam_dist * 4;
 
   double g_ms = 0, i_ms = 0, refresh = 0, psnr_sum = 0, ssim_sum = 0, tri_g = 0, tri_s = 0, atlas_use = 0, cards = 0;
-  double psnr_min = std::numeric_limits<double>::infinity();
+  double psnr_min = std::numeric_limits<double>::infinity(), psnr_ref_sum = 0;
   double deferred = 0, quad_texels = 0, drawn_texels = 0, short_lived = 0, ahead = 0, snapshot_frames = 0;
   int drawn_frames = 0;
   std::vector<double> g_times, i_times;  // per measured frame, ms
@@ -467,8 +467,11 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
     if (compare) {
       double p = psnr_covered(imgs.geometry.data(), imgs.impostor.data(), s.width, s.height);
       double q = ssim_covered(imgs.geometry.data(), imgs.impostor.data(), s.width, s.height);
+      double r = psnr_reference(imgs.geometry.data(), imgs.impostor.data(), s.width, s.height);
       if (std::isinf(p)) p = 99.0;
+      if (std::isinf(r)) r = 99.0;
       psnr_sum += p;
+      psnr_ref_sum += r;
       ssim_sum += q;
       psnr_min = std::min(psnr_min, p);
       ++compared;
@@ -484,6 +487,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   out.impostor_multisampled_frames = s.impostor ? static_cast<double>(multisampled_frames) / n : 0;
   out.psnr_db = compared ? psnr_sum / compared : 0;
   out.psnr_min_db = compared ? psnr_min : 0;
+  out.psnr_ref_db = compared ? psnr_ref_sum / compared : 0;
   out.ssim = compared ? ssim_sum / compared : 0;
   const double se_all = class_se[0] + class_se[1] + class_se[2];
   FlowResult::ErrorClass* classes[3] = {&out.interior, &out.edge, &out.one_only};

@@ -26,6 +26,24 @@ double psnr_covered(const unsigned char* a, const unsigned char* b, int w, int h
   return 10.0 * std::log10(255.0 * 255.0 / mse);
 }
 
+double psnr_reference(const unsigned char* ref, const unsigned char* test, int w, int h) {
+  double se = 0;
+  size_t n = 0;
+  for (size_t i = 0; i < static_cast<size_t>(w) * h; ++i) {
+    const unsigned char* p = ref + 4 * i;
+    const unsigned char* q = test + 4 * i;
+    if (p[3] == 0 && q[3] == 0) continue;
+    for (int k = 0; k < 3; ++k) {
+      double d = double(p[k]) - double(q[k]);
+      se += d * d;
+    }
+    if (p[3] != 0) n += 3;
+  }
+  if (se == 0) return std::numeric_limits<double>::infinity();
+  if (n == 0) return 0.0;
+  return 10.0 * std::log10(255.0 * 255.0 * static_cast<double>(n) / se);
+}
+
 double ssim_covered(const unsigned char* a, const unsigned char* b, int w, int h) {
   auto luma = [](const unsigned char* p) {  // premultiplied, like the frames
     return 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];

@@ -57,6 +57,8 @@ TEST(FlowCli, BothPathsOnAModelThatIsNotOurs) {
   EXPECT_GE(j["refresh_fraction"].get<double>(), 0);
   EXPECT_LE(j["refresh_fraction"].get<double>(), 1);
   EXPECT_GT(j["psnr_db"].get<double>(), 5);  // the impostors show the same crowd
+  EXPECT_GT(j["psnr_ref_db"].get<double>(), 5);
+  EXPECT_LE(j["psnr_ref_db"].get<double>(), j["psnr_db"].get<double>());
   EXPECT_GT(j["ssim"].get<double>(), 0.3);
   // CesiumMan's file has one level: both paths get the coarser ones made at load (--lods 3).
   ASSERT_EQ(j["lods"].size(), 1u);
@@ -289,7 +291,7 @@ TEST(FlowCli, TwoTapsComeCloseToFourInAMultisampledScene) {
   for (const char* model : {"CesiumMan.glb", "RiggedSimple.gltf"}) {
     const std::string args = "flow --model " + data + model + " --frames 4 --size 640x512 --posture 0 --view 0 " +
                              "--json -o " + d.string();
-    double psnr[5] = {};
+    double psnr[5] = {}, ref[5] = {};
     for (int taps : {1, 2, 4}) {
       Out o = run(args + " --impostor-taps " + std::to_string(taps));
       if (o.text.find("EGL") != std::string::npos && o.status != 0) GTEST_SKIP() << "no headless OpenGL: " << o.text;
@@ -299,12 +301,20 @@ TEST(FlowCli, TwoTapsComeCloseToFourInAMultisampledScene) {
       EXPECT_EQ(j["msaa"], 4);
       EXPECT_DOUBLE_EQ(j["refresh_fraction"].get<double>(), 1.0);
       psnr[taps] = j["psnr_db"].get<double>();
+      ref[taps] = j["psnr_ref_db"].get<double>();
+      EXPECT_LE(ref[taps], psnr[taps]) << model;  // the same error over no more pixels
     }
-    std::printf("%s, 4x MSAA, every impostor fresh: one tap %.2f dB, two %.2f dB, four %.2f dB\n", model, psnr[1],
-                psnr[2], psnr[4]);
+    std::printf("%s, 4x MSAA, every impostor fresh: one tap %.2f dB, two %.2f dB, four %.2f dB "
+                "(over the geometry's pixels %.2f, %.2f, %.2f dB)\n",
+                model, psnr[1], psnr[2], psnr[4], ref[1], ref[2], ref[4]);
     EXPECT_GT(psnr[2], psnr[1] + 0.2) << model;
     EXPECT_GT(psnr[2], psnr[4] - 0.5) << model;
     EXPECT_LT(psnr[2], psnr[4] + 0.1) << model;
+    // Wider soft edges add pixels to psnr_db's mean; counted over the geometry's pixels, which the
+    // taps cannot change, two taps still beat one (measured +0.13 and +0.24 dB against +0.38 and
+    // +0.42 dB) and come within 0.15 dB of four.
+    EXPECT_GT(ref[2], ref[1] + 0.08) << model;
+    EXPECT_NEAR(ref[2], ref[4], 0.15) << model;
   }
   const std::string rs = "flow --model " + data + "RiggedSimple.gltf --frames 2 --size 320x256 --json -o " + d.string();
   const std::pair<std::string, int> autos[] = {

@@ -23,6 +23,27 @@ TEST(ImageMetrics, PsnrIsExactOnATinyCase) {
   EXPECT_NEAR(psnr_covered(e.data(), z.data(), 1, 1), 10 * std::log10(255.0 * 255.0 / 2500.0), 1e-9);
 }
 
+TEST(ImageMetrics, ReferencePsnrCountsAHaloAsErrorNotAsPixels) {
+  // 3x1: the reference covers pixel 0; the test image matches it but for 10 in each channel, and
+  // adds a faint halo (alpha 2/255) on pixels 1 and 2.
+  std::vector<unsigned char> ref = {100, 100, 100, 255, 0, 0, 0, 0, 0, 0, 0, 0};
+  std::vector<unsigned char> bare = {110, 110, 110, 255, 0, 0, 0, 0, 0, 0, 0, 0};
+  std::vector<unsigned char> halo = {110, 110, 110, 255, 1, 1, 1, 2, 1, 1, 1, 2};
+  const double bare_db = 10 * std::log10(255.0 * 255.0 / 100.0);
+  EXPECT_NEAR(psnr_reference(ref.data(), bare.data(), 3, 1), bare_db, 1e-9);
+  EXPECT_NEAR(psnr_covered(ref.data(), bare.data(), 3, 1), bare_db, 1e-9);
+  // psnr_covered averages over the halo's pixels too: (300 + 3 + 3) / 9 per channel, higher.
+  EXPECT_NEAR(psnr_covered(ref.data(), halo.data(), 3, 1), 10 * std::log10(255.0 * 255.0 / (306.0 / 9.0)), 1e-9);
+  EXPECT_GT(psnr_covered(ref.data(), halo.data(), 3, 1), bare_db + 4.0);
+  // Here the halo adds its error over the reference's one pixel: (300 + 6) / 3, lower.
+  EXPECT_NEAR(psnr_reference(ref.data(), halo.data(), 3, 1), 10 * std::log10(255.0 * 255.0 / (306.0 / 3.0)), 1e-9);
+  EXPECT_LT(psnr_reference(ref.data(), halo.data(), 3, 1), bare_db);
+  EXPECT_TRUE(std::isinf(psnr_reference(ref.data(), ref.data(), 3, 1)));
+  // A test image over an empty reference: nothing to measure against, 0 dB.
+  std::vector<unsigned char> empty(12, 0);
+  EXPECT_EQ(psnr_reference(empty.data(), halo.data(), 3, 1), 0.0);
+}
+
 TEST(ImageMetrics, SsimIsOneForEqualImagesAndLowerForNoise) {
   int w = 32, h = 32;
   std::vector<unsigned char> a(w * h * 4), b;
