@@ -1,47 +1,52 @@
 #include "image_metrics.h"
 
 #include <cmath>
+#include <cstddef>
 #include <limits>
 #include <vector>
 
 namespace bb::cli {
 
-double psnr_covered(const unsigned char* a, const unsigned char* b, int w, int h) {
+namespace {
+
+// The squared error of the RGB channels over the pixels covered (alpha > 0) in either image, and
+// how many channels were covered in either image and in `a`.
+struct CoveredError {
   double se = 0;
-  size_t n = 0;
-  for (size_t i = 0; i < static_cast<size_t>(w) * h; ++i) {
+  std::size_t either = 0, in_a = 0;
+};
+
+CoveredError covered_error(const unsigned char* a, const unsigned char* b, int w, int h) {
+  CoveredError e;
+  for (std::size_t i = 0; i < static_cast<std::size_t>(w) * h; ++i) {
     const unsigned char* p = a + 4 * i;
     const unsigned char* q = b + 4 * i;
     if (p[3] == 0 && q[3] == 0) continue;
     // The frames hold premultiplied colours (a multisampled edge pixel is colour x coverage over
     // a transparent clear), so a pixel covered in one image only counts in full as it is.
     for (int k = 0; k < 3; ++k) {
-      double d = double(p[k]) - double(q[k]);
-      se += d * d;
+      const double d = double(p[k]) - double(q[k]);
+      e.se += d * d;
     }
-    n += 3;
+    e.either += 3;
+    if (p[3] != 0) e.in_a += 3;
   }
-  if (n == 0 || se == 0) return std::numeric_limits<double>::infinity();
-  double mse = se / n;
-  return 10.0 * std::log10(255.0 * 255.0 / mse);
+  return e;
+}
+
+}  // namespace
+
+double psnr_covered(const unsigned char* a, const unsigned char* b, int w, int h) {
+  const CoveredError e = covered_error(a, b, w, h);
+  if (e.either == 0 || e.se == 0) return std::numeric_limits<double>::infinity();
+  return 10.0 * std::log10(255.0 * 255.0 * static_cast<double>(e.either) / e.se);
 }
 
 double psnr_reference(const unsigned char* ref, const unsigned char* test, int w, int h) {
-  double se = 0;
-  size_t n = 0;
-  for (size_t i = 0; i < static_cast<size_t>(w) * h; ++i) {
-    const unsigned char* p = ref + 4 * i;
-    const unsigned char* q = test + 4 * i;
-    if (p[3] == 0 && q[3] == 0) continue;
-    for (int k = 0; k < 3; ++k) {
-      double d = double(p[k]) - double(q[k]);
-      se += d * d;
-    }
-    if (p[3] != 0) n += 3;
-  }
-  if (se == 0) return std::numeric_limits<double>::infinity();
-  if (n == 0) return 0.0;
-  return 10.0 * std::log10(255.0 * 255.0 * static_cast<double>(n) / se);
+  const CoveredError e = covered_error(ref, test, w, h);
+  if (e.se == 0) return std::numeric_limits<double>::infinity();
+  if (e.in_a == 0) return 0.0;
+  return 10.0 * std::log10(255.0 * 255.0 * static_cast<double>(e.in_a) / e.se);
 }
 
 double ssim_covered(const unsigned char* a, const unsigned char* b, int w, int h) {
