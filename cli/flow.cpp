@@ -94,7 +94,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["snapshot_scale"] = s.exact_scale ? "exact" : "fill";
   j["snapshot_samples"] = s.snapshot_samples;
   j["impostor_taps"] = s.snapshot_samples > 1 ? 1 : s.impostor_taps;
-  j["quad_fit"] = s.fit_quads ? "coverage" : "boxes";
+  j["quad_fit"] = !s.fit_quads ? "boxes" : s.fit_from_vertices ? "vertices" : "coverage";
   if (s.fit_quads) j["coverage_group"] = r.coverage_group;
   j["short_lived"] = r.short_lived_as_geometry ? "geometry" : "snapshot";
   if (r.short_lived_as_geometry) j["short_lived_geometry"] = r.short_lived_geometry;
@@ -378,9 +378,10 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   // texels: -0.4 dB at 2).
   if (a.impostor_taps != "auto") s.impostor_taps = std::stoi(a.impostor_taps);
   else s.impostor_taps = a.msaa == 1 ? 1 : !a.impostor_parts && a.texels_per_pixel <= 1.0f ? 2 : 4;
-  if (a.quad_fit != "boxes" && a.quad_fit != "coverage")
-    return fail("--quad-fit: expected boxes or coverage (got \"" + a.quad_fit + "\")");
-  s.fit_quads = a.quad_fit == "coverage";
+  if (a.quad_fit != "boxes" && a.quad_fit != "coverage" && a.quad_fit != "vertices")
+    return fail("--quad-fit: expected boxes, coverage or vertices (got \"" + a.quad_fit + "\")");
+  s.fit_quads = a.quad_fit != "boxes";
+  s.fit_from_vertices = a.quad_fit == "vertices";
   if (a.coverage_group != "auto" && a.coverage_group != "4" && a.coverage_group != "8" && a.coverage_group != "16")
     return fail("--coverage-group: expected auto, 4, 8 or 16 (got \"" + a.coverage_group + "\")");
   s.coverage_group = a.coverage_group == "auto" ? 0 : std::stoi(a.coverage_group);
@@ -849,7 +850,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "Taps per pixel of the impostor shader on single-sampled snapshots: 4 (at the 4x sample pattern: a multisampled pixel's coverage), 2 (two on the diagonal: cheaper, nearly as close to a multisampled pixel at one texel per pixel), 1 (one bilinear tap: for single-sampled scenes) or auto (1 where --msaa 1; else 2 for whole impostors at up to one texel per pixel, 4 for part cards and finer windows)")
       ->capture_default_str();
   cmd->add_option("--quad-fit", a->quad_fit,
-                  "Impostor quads: boxes (the projected pose and part boxes) or coverage (shrunk on the GPU to the snapshot's covered texels)")
+                  "Impostor quads: boxes (the projected pose and part boxes), coverage (shrunk on the GPU to the snapshot's covered texels) or vertices (whole impostors' quads shrunk on the CPU to the snapshot's skinned vertices, the same pictures without the GPU pass; part cards as coverage)")
       ->capture_default_str();
   cmd->add_option("--coverage-group", a->coverage_group,
                   "With --quad-fit coverage: invocations per side of the coverage pass's work groups, one group per new snapshot: 4, 8, 16 or auto (4 on a software rasterizer such as llvmpipe, which runs a group's invocations as one thread's SIMD lanes; 16 on a GPU, where a group waits for its invocations' walk over the window); the same rectangles whatever the size")

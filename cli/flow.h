@@ -81,6 +81,7 @@ struct FlowSettings {
   int snapshot_samples = 1;                 // ImpostorConfig::snapshot_samples
   int impostor_taps = 4;                    // ImpostorConfig::impostor_taps
   bool fit_quads = true;                    // ImpostorConfig::fit_quads_to_coverage
+  bool fit_from_vertices = false;           // ImpostorConfig::fit_quads_from_vertices (--quad-fit vertices)
   int coverage_group = 0;                   // ImpostorConfig::coverage_group (0: by the rasterizer)
   bool time_stages = false;                 // GPU timestamps between the renderer's stages (gpu_ms_stages)
   int flush_every_indices = -1;             // DrawOptions::flush_every_indices (-1: auto, 0: never)

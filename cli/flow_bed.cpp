@@ -164,6 +164,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   config.snapshot_samples = s.snapshot_samples;
   config.impostor_taps = s.impostor_taps;
   config.fit_quads_to_coverage = s.fit_quads;
+  config.fit_quads_from_vertices = s.fit_from_vertices;
   config.coverage_group = s.coverage_group;
   config.planner_threads = s.planner_threads;
   DrawOptions draw_options;

@@ -176,6 +176,49 @@ void palette_rows(std::span<const glm::vec4> pal, int entries, const BakedClip& 
   for (int r = 0; r < 3; ++r) rows[r] = a[r] + (b[r] - a[r]) * blend;
 }
 
+// Adds the vertices of level `ml`, skinned between baked frames f0 and f1 of `bc` as the snapshot
+// shader skins them and placed by `mf`, to `e` in `cam`'s window units (ImpostorConfig::
+// fit_quads_from_vertices): the extent of the snapshot's triangles, so of every texel they cover.
+void add_skinned_vertices(const SnapshotCamera& cam, const ModelFrame& mf, const MeshLod& ml, std::span<const glm::vec4> pal,
+                          int entries, const BakedClip& bc, int f0, int f1, float blend, PlaneExtent& e) {
+  thread_local std::vector<glm::vec4> g;  // per palette entry: its rows projected on Ho, Uo, Vo
+  g.resize(static_cast<std::size_t>(entries) * 3);
+  for (int k = 0; k < entries; ++k) {
+    glm::vec4 rows[3];
+    palette_rows(pal, entries, bc, f0, f1, blend, k, rows);
+    for (int j = 0; j < 3; ++j) g[static_cast<std::size_t>(k) * 3 + j] = mf.f[j].x * rows[0] + mf.f[j].y * rows[1] + mf.f[j].z * rows[2];
+  }
+  const float inv_half = 1.0f / cam.half_size;
+  const float dist = cam.distance, near = 1e-3f * cam.distance, inv_dist = 1.0f / cam.distance;
+  glm::vec2 lo = e.lo, hi = e.hi;
+  for (const Vertex& v : ml.vertices) {
+    glm::vec4 a(0.0f), b(0.0f), c(0.0f);
+    for (int k = 0; k < 4; ++k) {
+      const float w = v.weights[k];
+      if (w <= 0.0f) continue;
+      const glm::vec4* gk = &g[static_cast<std::size_t>(v.joints[k]) * 3];
+      a += w * gk[0];
+      b += w * gk[1];
+      c += w * gk[2];
+    }
+    const glm::vec4 p(v.position, 1.0f);
+    float x = mf.k[0] + glm::dot(a, p), y = mf.k[1] + glm::dot(b, p);
+    if (cam.perspective) {  // as add_framed_box
+      const float z = mf.k[2] + glm::dot(c, p);
+      const float s = inv_half * dist / std::max(dist + z, near);
+      x = (x - cam.offset.x * (z * inv_dist)) * s;
+      y = (y - cam.offset.y * (z * inv_dist)) * s;
+    } else {
+      x *= inv_half;
+      y *= inv_half;
+    }
+    lo = glm::min(lo, glm::vec2(x, y));
+    hi = glm::max(hi, glm::vec2(x, y));
+  }
+  e.lo = lo;
+  e.hi = hi;
+}
+
 // Model space -> world for character `ch` (scale, yaw about +Y, position).
 glm::mat4 placement(const Character& ch) {
   const float cy = std::cos(ch.yaw), sy = std::sin(ch.yaw), sc = ch.scale;
@@ -551,6 +594,23 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
         const int slod = config_.snapshot_lod_from_screen ? std::min(lod_for(pixels, camera.height), lods - 1)
                                                           : window_lod[win.size_class];
         const float tpp = window_texels_per_pixel(win.size, sc.half_size, depth, ppm1);
+        if (config_.fit_quads_from_vertices && next.fitted) {
+          // The quad and the cleared rect from the skinned vertices, widened by the taps' reach as
+          // the coverage pass widens its rectangle (snapshot_gpu): no pass, the same pictures.
+          PlaneExtent ve;
+          add_skinned_vertices(sc, model_frame(sc, ch), m.lods[slod], pal, np, bc, f0, f1, blend, ve);
+          if (ve.lo.x <= ve.hi.x) {
+            const float texel = 2.0f / static_cast<float>(win.size);
+            const float reach = std::ceil(0.5f + 0.875f * tpp);
+            const glm::vec2 t0 = glm::floor(ve.lo / texel), t1 = glm::ceil(ve.hi / texel);
+            const glm::vec4 q(glm::clamp((t0 - reach) * texel, -1.0f, 1.0f), glm::clamp((t1 + reach) * texel, -1.0f, 1.0f));
+            next.rect = rect_intersection(next.rect, q);
+            const glm::vec4 sr(glm::clamp((t0 - reach - 1.0f) * texel, -1.0f, 1.0f),
+                               glm::clamp((t1 + reach + 1.0f) * texel, -1.0f, 1.0f));
+            snap_rect = rect_intersection(snap_rect, sr);
+            next.fitted = false;
+          }
+        }
         cs = next;
         out.snapshots.add(slod,
             snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect, slot, next.fitted, tpp));

@@ -398,6 +398,32 @@ TEST(FlowCli, ShortLivedSnapshotsBecomeGeometryAtOneSample) {
   EXPECT_DOUBLE_EQ(jpa["psnr_db"].get<double>(), jps["psnr_db"].get<double>());
 }
 
+// --quad-fit vertices: whole impostors' quads fitted on the CPU from the skinned vertices hold what
+// the coverage pass's hold, so the frames compare with the geometry's as they do with the pass,
+// over a few percent more quad texels.
+TEST(FlowCli, QuadsFromTheVerticesGiveThePassesPictures) {
+  std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
+  fs::path d = fs::temp_directory_path() / "bb_flow_cli_test_quad_fit";
+  const std::string args = "flow --model " + model + " --size 480x384 --frames 12 --posture 0.2 --view 4 --json -o " + d.string();
+  Out pass = run(args + " --quad-fit coverage");
+  if (pass.text.find("EGL") != std::string::npos && pass.status != 0) GTEST_SKIP() << "no headless OpenGL: " << pass.text;
+  ASSERT_EQ(pass.status, 0) << pass.text;
+  Out vertices = run(args + " --quad-fit vertices");
+  ASSERT_EQ(vertices.status, 0) << vertices.text;
+  auto jp = nlohmann::json::parse(last_json_line(pass.text));
+  auto jv = nlohmann::json::parse(last_json_line(vertices.text));
+  EXPECT_EQ(jp["quad_fit"], "coverage");
+  EXPECT_EQ(jv["quad_fit"], "vertices");
+  EXPECT_GT(jv["refresh_fraction"].get<double>(), 0.0);
+  EXPECT_NEAR(jv["psnr_db"].get<double>(), jp["psnr_db"].get<double>(), 0.01);
+  EXPECT_NEAR(jv["psnr_ref_db"].get<double>(), jp["psnr_ref_db"].get<double>(), 0.01);
+  const double tp = jp["drawn_quad_texels_per_frame"].get<double>(), tv = jv["drawn_quad_texels_per_frame"].get<double>();
+  std::printf("drawn quad texels a frame: coverage pass %.0f, vertices %.0f\n", tp, tv);
+  EXPECT_GE(tv, tp);
+  EXPECT_LT(tv, 1.2 * tp);
+}
+
 // Impostor frames hold impostors only. With blended edges (the default) every sample of a pixel
 // gets the same colour, so on a software rasterizer the impostor path draws into a single-sampled
 // target (runtime::impostor_target_samples; on a GPU auto keeps the scene's samples) and its

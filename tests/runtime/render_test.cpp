@@ -1031,6 +1031,89 @@ TEST(CrowdRender, QuadsFittedToTheCoverageHoldEveryCoveredTexel) {
   EXPECT_EQ(frame(1.0f, true, true, 16), depth4) << "16x16 work groups, depth-corrected part cards";
 }
 
+// ImpostorConfig::fit_quads_from_vertices: whole impostors' quads fitted on the CPU from the
+// snapshot level's skinned vertices hold every texel the snapshot covers (read back from the
+// atlas), are little larger than the coverage pass's, and give the same frame without the pass.
+TEST(CrowdRender, QuadsFittedFromTheVerticesHoldEveryCoveredTexel) {
+  REQUIRE_GL();
+  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
+  auto m = load_model(path);
+  ASSERT_TRUE(m.ok());
+  Crowd crowd = walker_ring(*m);
+  for (float tpp : {1.0f, 2.0f}) {
+    std::vector<std::uint8_t> images[2];
+    double area[2] = {0, 0};
+    for (int from_vertices = 0; from_vertices < 2; ++from_vertices) {
+      ImpostorConfig cfg = refresh_always();
+      cfg.texels_per_pixel = tpp;
+      cfg.fit_quads_from_vertices = from_vertices == 1;
+      FramePlanner planner(*m, cfg);
+      auto renderer = Renderer::create(*m, cfg);
+      ASSERT_TRUE(renderer.ok()) << renderer.error().message();
+      auto target = OffscreenTarget::create(640, 512, 4);
+      ASSERT_TRUE(target.ok());
+      (*target)->bind(true);
+      const FramePlan& p = planner.plan(crowd, ring_camera(), 0.3f, RenderMode::kImpostor);
+      ASSERT_FALSE(p.billboards.empty());
+      DrawOptions blend;
+      blend.edges = ImpostorEdges::kBlend;
+      (*renderer)->draw(p, blend);
+      images[from_vertices] = (*target)->read_rgba();
+      const float page = static_cast<float>(cfg.page_size);
+      std::map<int, std::vector<std::uint8_t>> pages;
+      for (const BillboardGpu& b : p.billboards) {
+        glm::vec4 r = b.rect;
+        if (from_vertices == 0) {
+          ASSERT_GT(b.layer.z, 0.5f);  // fitted by the pass
+          const glm::vec4 f = (*renderer)->coverage_rect(static_cast<int>(b.layer.y));
+          r = glm::vec4(glm::max(glm::vec2(r), glm::vec2(f)), glm::min(glm::vec2(r.z, r.w), glm::vec2(f.z, f.w)));
+        } else {
+          ASSERT_LT(b.layer.z, 0.5f);  // fitted already: no pass
+        }
+        area[from_vertices] += (r.z - r.x) * (r.w - r.y);
+        if (from_vertices == 0) continue;
+        auto [it, fresh] = pages.try_emplace(static_cast<int>(b.layer.x));
+        if (fresh) it->second = (*renderer)->read_atlas_page(it->first);
+        const auto& px = it->second;
+        const int x0 = static_cast<int>(std::lround(b.uv_rect.x * page)), y0 = static_cast<int>(std::lround(b.uv_rect.y * page));
+        const int size = static_cast<int>(std::lround((b.uv_rect.z - b.uv_rect.x) * page));
+        int covered = 0, outside = 0;
+        glm::ivec2 tlo(size), thi(-1);
+        for (int y = 0; y < size; ++y)
+          for (int x = 0; x < size; ++x) {
+            if (px[((static_cast<std::size_t>(y0 + y) * cfg.page_size) + x0 + x) * 4 + 3] == 0) continue;
+            ++covered;
+            tlo = glm::min(tlo, glm::ivec2(x, y));
+            thi = glm::max(thi, glm::ivec2(x, y));
+            const glm::vec2 lo = glm::vec2(x, y) / float(size) * 2.0f - 1.0f, hi = glm::vec2(x + 1, y + 1) / float(size) * 2.0f - 1.0f;
+            outside += lo.x < r.x || lo.y < r.y || hi.x > r.z || hi.y > r.w;
+          }
+        EXPECT_GT(covered, size * size / 25);
+        EXPECT_EQ(outside, 0);
+        // The taps' reach (2 to 3 texels here) and up to a texel and a half where the vertices lie
+        // past the covered texels' centres, on every side.
+        const float to_texels = 0.5f * static_cast<float>(size);
+        for (float mk : {static_cast<float>(tlo.x) - (r.x + 1.0f) * to_texels, static_cast<float>(tlo.y) - (r.y + 1.0f) * to_texels,
+                         (r.z + 1.0f) * to_texels - static_cast<float>(thi.x + 1),
+                         (r.w + 1.0f) * to_texels - static_cast<float>(thi.y + 1)}) {
+          EXPECT_GE(mk, 1.0f);
+          EXPECT_LE(mk, 5.0f);
+        }
+      }
+    }
+    std::printf("quads from the vertices, %g texels per pixel: %.1f %% of the coverage pass's area\n", tpp,
+                100.0 * area[1] / area[0]);
+    EXPECT_GE(area[1], area[0]);
+    EXPECT_LT(area[1], 1.25 * area[0]);
+    // The same frame but for the rounding of texture coordinates interpolated over another quad.
+    ASSERT_EQ(images[0].size(), images[1].size());
+    int worst = 0;
+    for (std::size_t i = 0; i < images[0].size(); ++i) worst = std::max(worst, std::abs(int(images[0][i]) - int(images[1][i])));
+    EXPECT_LE(worst, 1);
+  }
+}
+
 // Snapshots on the pixel grid, multisampled like the scene and blended: a fresh impostor is the
 // geometry's own picture (texels copied onto the pixels, coverage resolved the same way), so the
 // frames agree to rounding where the free snapshot camera resamples (~23 dB above).
