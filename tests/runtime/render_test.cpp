@@ -242,6 +242,36 @@ Crowd walker_ring(const Model& m) {
   }
   return crowd;
 }
+// The texels with coverage of billboard `b`'s window (page pixels `px`, RGBA, of a `page_size`
+// page), against the rectangle `r` in window units: how many, how many lie outside it, and the
+// margins (texels) between their bounds and its sides (left, bottom, right, top).
+struct WindowCoverage {
+  int size = 0, covered = 0, outside = 0;
+  float margin[4] = {0, 0, 0, 0};
+};
+WindowCoverage window_coverage(const std::vector<std::uint8_t>& px, int page_size, const BillboardGpu& b, const glm::vec4& r) {
+  const float page = static_cast<float>(page_size);
+  WindowCoverage w;
+  const int x0 = static_cast<int>(std::lround(b.uv_rect.x * page)), y0 = static_cast<int>(std::lround(b.uv_rect.y * page));
+  const int size = w.size = static_cast<int>(std::lround((b.uv_rect.z - b.uv_rect.x) * page));
+  glm::ivec2 tlo(size), thi(-1);  // the covered texels' bounds
+  for (int y = 0; y < size; ++y)
+    for (int x = 0; x < size; ++x) {
+      if (px[((static_cast<std::size_t>(y0 + y) * page_size) + x0 + x) * 4 + 3] == 0) continue;
+      ++w.covered;
+      tlo = glm::min(tlo, glm::ivec2(x, y));
+      thi = glm::max(thi, glm::ivec2(x, y));
+      const glm::vec2 lo = glm::vec2(x, y) / float(size) * 2.0f - 1.0f, hi = glm::vec2(x + 1, y + 1) / float(size) * 2.0f - 1.0f;
+      w.outside += lo.x < r.x || lo.y < r.y || hi.x > r.z || hi.y > r.w;
+    }
+  const float to_texels = 0.5f * static_cast<float>(size);
+  w.margin[0] = static_cast<float>(tlo.x) - (r.x + 1.0f) * to_texels;
+  w.margin[1] = static_cast<float>(tlo.y) - (r.y + 1.0f) * to_texels;
+  w.margin[2] = (r.z + 1.0f) * to_texels - static_cast<float>(thi.x + 1);
+  w.margin[3] = (r.w + 1.0f) * to_texels - static_cast<float>(thi.y + 1);
+  return w;
+}
+
 ImpostorConfig refresh_always() {
   ImpostorConfig cfg;
   cfg.cache.posture_threshold = 0.0f;
@@ -963,38 +993,21 @@ TEST(CrowdRender, QuadsFittedToTheCoverageHoldEveryCoveredTexel) {
     (*renderer)->draw(p, blend);
     std::vector<std::uint8_t> image = (*target)->read_rgba();
     if (!fit) return image;
-    const float page = static_cast<float>(cfg.page_size);
     std::map<int, std::vector<std::uint8_t>> pages;  // read once each
     double planned = 0, fitted = 0, fitted_texels = 0;
     for (const BillboardGpu& b : p.billboards) {
       EXPECT_GT(b.layer.z, 0.5f);
       auto [it, fresh] = pages.try_emplace(static_cast<int>(b.layer.x));
       if (fresh) it->second = (*renderer)->read_atlas_page(it->first);
-      const auto& px = it->second;
-      const int x0 = static_cast<int>(std::lround(b.uv_rect.x * page)), y0 = static_cast<int>(std::lround(b.uv_rect.y * page));
-      const int size = static_cast<int>(std::lround((b.uv_rect.z - b.uv_rect.x) * page));
       const glm::vec4 r = (*renderer)->coverage_rect(static_cast<int>(b.layer.y));
       EXPECT_LT(r.x, r.z);
-      int covered = 0, outside = 0;
-      glm::ivec2 tlo(size), thi(-1);  // the covered texels' bounds
-      for (int y = 0; y < size; ++y)
-        for (int x = 0; x < size; ++x) {
-          if (px[((static_cast<std::size_t>(y0 + y) * cfg.page_size) + x0 + x) * 4 + 3] == 0) continue;
-          ++covered;
-          tlo = glm::min(tlo, glm::ivec2(x, y));
-          thi = glm::max(thi, glm::ivec2(x, y));
-          const glm::vec2 lo = glm::vec2(x, y) / float(size) * 2.0f - 1.0f, hi = glm::vec2(x + 1, y + 1) / float(size) * 2.0f - 1.0f;
-          outside += lo.x < r.x || lo.y < r.y || hi.x > r.z || hi.y > r.w;
-        }
-      EXPECT_GT(covered, size * size / 25);  // a picture, not an empty window (a small part fills little of its 32)
-      EXPECT_EQ(outside, 0);
+      const WindowCoverage w = window_coverage(it->second, cfg.page_size, b, r);
+      const int size = w.size;
+      EXPECT_GT(w.covered, size * size / 25);  // a picture, not an empty window (a small part fills little of its 32)
+      EXPECT_EQ(w.outside, 0);
       // And no larger: the covered texels' bounds widened by the same margin (the taps' reach, a
       // few texels) on every side.
-      const float to_texels = 0.5f * static_cast<float>(size);
-      const float margin[4] = {static_cast<float>(tlo.x) - (r.x + 1.0f) * to_texels,
-                               static_cast<float>(tlo.y) - (r.y + 1.0f) * to_texels,
-                               (r.z + 1.0f) * to_texels - static_cast<float>(thi.x + 1),
-                               (r.w + 1.0f) * to_texels - static_cast<float>(thi.y + 1)};
+      const float(&margin)[4] = w.margin;
       for (float mk : margin) {
         EXPECT_NEAR(mk, margin[0], 1e-3f);
         EXPECT_GE(mk, 0.0f);
@@ -1060,7 +1073,6 @@ TEST(CrowdRender, QuadsFittedFromTheVerticesHoldEveryCoveredTexel) {
       blend.edges = ImpostorEdges::kBlend;
       (*renderer)->draw(p, blend);
       images[from_vertices] = (*target)->read_rgba();
-      const float page = static_cast<float>(cfg.page_size);
       std::map<int, std::vector<std::uint8_t>> pages;
       for (const BillboardGpu& b : p.billboards) {
         glm::vec4 r = b.rect;
@@ -1075,28 +1087,12 @@ TEST(CrowdRender, QuadsFittedFromTheVerticesHoldEveryCoveredTexel) {
         if (from_vertices == 0) continue;
         auto [it, fresh] = pages.try_emplace(static_cast<int>(b.layer.x));
         if (fresh) it->second = (*renderer)->read_atlas_page(it->first);
-        const auto& px = it->second;
-        const int x0 = static_cast<int>(std::lround(b.uv_rect.x * page)), y0 = static_cast<int>(std::lround(b.uv_rect.y * page));
-        const int size = static_cast<int>(std::lround((b.uv_rect.z - b.uv_rect.x) * page));
-        int covered = 0, outside = 0;
-        glm::ivec2 tlo(size), thi(-1);
-        for (int y = 0; y < size; ++y)
-          for (int x = 0; x < size; ++x) {
-            if (px[((static_cast<std::size_t>(y0 + y) * cfg.page_size) + x0 + x) * 4 + 3] == 0) continue;
-            ++covered;
-            tlo = glm::min(tlo, glm::ivec2(x, y));
-            thi = glm::max(thi, glm::ivec2(x, y));
-            const glm::vec2 lo = glm::vec2(x, y) / float(size) * 2.0f - 1.0f, hi = glm::vec2(x + 1, y + 1) / float(size) * 2.0f - 1.0f;
-            outside += lo.x < r.x || lo.y < r.y || hi.x > r.z || hi.y > r.w;
-          }
-        EXPECT_GT(covered, size * size / 25);
-        EXPECT_EQ(outside, 0);
+        const WindowCoverage w = window_coverage(it->second, cfg.page_size, b, r);
+        EXPECT_GT(w.covered, w.size * w.size / 25);
+        EXPECT_EQ(w.outside, 0);
         // The taps' reach (2 to 3 texels here) and up to a texel and a half where the vertices lie
         // past the covered texels' centres, on every side.
-        const float to_texels = 0.5f * static_cast<float>(size);
-        for (float mk : {static_cast<float>(tlo.x) - (r.x + 1.0f) * to_texels, static_cast<float>(tlo.y) - (r.y + 1.0f) * to_texels,
-                         (r.z + 1.0f) * to_texels - static_cast<float>(thi.x + 1),
-                         (r.w + 1.0f) * to_texels - static_cast<float>(thi.y + 1)}) {
+        for (float mk : w.margin) {
           EXPECT_GE(mk, 1.0f);
           EXPECT_LE(mk, 5.0f);
         }
