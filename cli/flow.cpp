@@ -850,7 +850,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "Taps per pixel of the impostor shader on single-sampled snapshots: 4 (at the 4x sample pattern: a multisampled pixel's coverage), 2 (two on the diagonal: cheaper, nearly as close to a multisampled pixel at one texel per pixel), 1 (one bilinear tap: for single-sampled scenes) or auto (1 where --msaa 1; else 2 for whole impostors at up to one texel per pixel, 4 for part cards and finer windows)")
       ->capture_default_str();
   cmd->add_option("--quad-fit", a->quad_fit,
-                  "Impostor quads: boxes (the projected pose and part boxes), coverage (shrunk on the GPU to the snapshot's covered texels) or vertices (whole impostors' quads shrunk on the CPU to the snapshot's skinned vertices, the same pictures without the GPU pass; part cards as coverage)")
+                  "Impostor quads: boxes (the projected pose and part boxes), coverage (shrunk on the GPU to the snapshot's covered texels) or vertices (shrunk on the CPU to the snapshot's skinned vertices: the same pictures without the GPU pass)")
       ->capture_default_str();
   cmd->add_option("--coverage-group", a->coverage_group,
                   "With --quad-fit coverage: invocations per side of the coverage pass's work groups, one group per new snapshot: 4, 8, 16 or auto (4 on a software rasterizer such as llvmpipe, which runs a group's invocations as one thread's SIMD lanes; 16 on a GPU, where a group waits for its invocations' walk over the window); the same rectangles whatever the size")

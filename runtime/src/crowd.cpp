@@ -176,22 +176,28 @@ void palette_rows(std::span<const glm::vec4> pal, int entries, const BakedClip& 
   for (int r = 0; r < 3; ++r) rows[r] = a[r] + (b[r] - a[r]) * blend;
 }
 
-// Adds the vertices of level `ml`, skinned between baked frames f0 and f1 of `bc` as the snapshot
-// shader skins them and placed by `mf`, to `e` in `cam`'s window units (ImpostorConfig::
+// Adds the vertices of level `ml` (all of them, or those that `indices` names), skinned between
+// the baked palette's rows `row0` and `row1` (absolute: InstanceGpu::anim's y and z) as the
+// snapshot shader skins them and placed by `mf`, to `e` in `cam`'s window units (ImpostorConfig::
 // fit_quads_from_vertices): the extent of the snapshot's triangles, so of every texel they cover.
-void add_skinned_vertices(const SnapshotCamera& cam, const ModelFrame& mf, const MeshLod& ml, std::span<const glm::vec4> pal,
-                          int entries, const BakedClip& bc, int f0, int f1, float blend, PlaneExtent& e) {
+void add_skinned_vertices(const SnapshotCamera& cam, const ModelFrame& mf, const MeshLod& ml,
+                          std::span<const std::uint32_t> indices, std::span<const glm::vec4> pal, int entries, int row0,
+                          int row1, float blend, PlaneExtent& e) {
   thread_local std::vector<glm::vec4> g;  // per palette entry: its rows projected on Ho, Uo, Vo
+  thread_local std::vector<std::uint32_t> seen;  // per vertex: the call that took it (indices share vertices)
+  thread_local std::uint32_t call = 0;
   g.resize(static_cast<std::size_t>(entries) * 3);
   for (int k = 0; k < entries; ++k) {
+    const glm::vec4* a = &pal[(static_cast<std::size_t>(row0) * entries + k) * 3];
+    const glm::vec4* b = &pal[(static_cast<std::size_t>(row1) * entries + k) * 3];
     glm::vec4 rows[3];
-    palette_rows(pal, entries, bc, f0, f1, blend, k, rows);
+    for (int r = 0; r < 3; ++r) rows[r] = a[r] + (b[r] - a[r]) * blend;
     for (int j = 0; j < 3; ++j) g[static_cast<std::size_t>(k) * 3 + j] = mf.f[j].x * rows[0] + mf.f[j].y * rows[1] + mf.f[j].z * rows[2];
   }
   const float inv_half = 1.0f / cam.half_size;
   const float dist = cam.distance, near = 1e-3f * cam.distance, inv_dist = 1.0f / cam.distance;
   glm::vec2 lo = e.lo, hi = e.hi;
-  for (const Vertex& v : ml.vertices) {
+  auto add = [&](const Vertex& v) {
     glm::vec4 a(0.0f), b(0.0f), c(0.0f);
     for (int k = 0; k < 4; ++k) {
       const float w = v.weights[k];
@@ -214,9 +220,36 @@ void add_skinned_vertices(const SnapshotCamera& cam, const ModelFrame& mf, const
     }
     lo = glm::min(lo, glm::vec2(x, y));
     hi = glm::max(hi, glm::vec2(x, y));
+  };
+  if (indices.empty()) {
+    for (const Vertex& v : ml.vertices) add(v);
+  } else {
+    if (seen.size() < ml.vertices.size()) seen.resize(ml.vertices.size(), 0);
+    if (++call == 0) {  // wrapped: forget every mark
+      std::fill(seen.begin(), seen.end(), 0u);
+      call = 1;
+    }
+    for (std::uint32_t i : indices)
+      if (seen[i] != call) {
+        seen[i] = call;
+        add(ml.vertices[i]);
+      }
   }
   e.lo = lo;
   e.hi = hi;
+}
+
+// A quad and a cleared rect (window units) around the extent `e` of a snapshot's skinned vertices
+// in a `window_size` window: the quad holds the texels the extent touches widened by `reach` texels
+// (the impostor taps', as the coverage pass widens its rectangle: snapshot_gpu), and the cleared
+// rect the quad widened by the taps' reach again and a texel, so that no tap of a pixel in the
+// quad reads a texel an earlier snapshot left.
+WindowRects vertex_rects(const PlaneExtent& e, int window_size, float reach) {
+  const float texel = 2.0f / static_cast<float>(window_size);
+  const glm::vec2 t0 = glm::floor(e.lo / texel), t1 = glm::ceil(e.hi / texel);
+  const float clear = 2.0f * reach + 1.0f;
+  return {glm::vec4(glm::clamp((t0 - reach) * texel, -1.0f, 1.0f), glm::clamp((t1 + reach) * texel, -1.0f, 1.0f)),
+          glm::vec4(glm::clamp((t0 - clear) * texel, -1.0f, 1.0f), glm::clamp((t1 + clear) * texel, -1.0f, 1.0f))};
 }
 
 // Model space -> world for character `ch` (scale, yaw about +Y, position).
@@ -598,16 +631,12 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
           // The quad and the cleared rect from the skinned vertices, widened by the taps' reach as
           // the coverage pass widens its rectangle (snapshot_gpu): no pass, the same pictures.
           PlaneExtent ve;
-          add_skinned_vertices(sc, model_frame(sc, ch), m.lods[slod], pal, np, bc, f0, f1, blend, ve);
+          add_skinned_vertices(sc, model_frame(sc, ch), m.lods[slod], {}, pal, np, bc.first_row + f0, bc.first_row + f1,
+                               blend, ve);
           if (ve.lo.x <= ve.hi.x) {
-            const float texel = 2.0f / static_cast<float>(win.size);
-            const float reach = std::ceil(0.5f + 0.875f * tpp);
-            const glm::vec2 t0 = glm::floor(ve.lo / texel), t1 = glm::ceil(ve.hi / texel);
-            const glm::vec4 q(glm::clamp((t0 - reach) * texel, -1.0f, 1.0f), glm::clamp((t1 + reach) * texel, -1.0f, 1.0f));
-            next.rect = rect_intersection(next.rect, q);
-            const glm::vec4 sr(glm::clamp((t0 - reach - 1.0f) * texel, -1.0f, 1.0f),
-                               glm::clamp((t1 + reach + 1.0f) * texel, -1.0f, 1.0f));
-            snap_rect = rect_intersection(snap_rect, sr);
+            const WindowRects vr = vertex_rects(ve, win.size, std::ceil(0.5f + 0.875f * tpp));
+            next.rect = rect_intersection(next.rect, vr.quad);
+            snap_rect = rect_intersection(snap_rect, vr.snapshot);
             next.fitted = false;
           }
         }
@@ -1009,10 +1038,29 @@ FramePlanner::PartCache FramePlanner::part_card(const PartJob& job, const Charac
     next.rect = rr.quad;
     snap_rect = rr.snapshot;
   }
-  s = snapshot_gpu(job.inst, cam, r, win, page, snap_rect, next.rect, slot, next.fitted,
-                   window_texels_per_pixel(win.size, cam.half_size, job.depth, ppm1));
-  s.part.x = static_cast<float>(p);
+  const float tpp = window_texels_per_pixel(win.size, cam.half_size, job.depth, ppm1);
   const PartIndices& pi = m.part_indices(job.slod);
+  if (config_.fit_quads_from_vertices && next.fitted) {
+    // As for whole impostors (plan_character): the part's triangles' vertices (each primitive's
+    // range of the part index list) instead of the coverage pass.
+    const MeshLod& ml = m.lods[static_cast<std::size_t>(job.slod)];
+    const ModelFrame mf = model_frame(cam, ch);
+    const int row0 = static_cast<int>(job.inst.anim.y), row1 = static_cast<int>(job.inst.anim.z);
+    PlaneExtent ve;
+    for (std::size_t k = 0; k < ml.primitives.size(); ++k) {
+      const PartIndices::Range& range = pi.ranges[k * static_cast<std::size_t>(parts_) + static_cast<std::size_t>(p)];
+      add_skinned_vertices(cam, mf, ml, std::span<const std::uint32_t>(pi.indices).subspan(range.first, range.count),
+                           m.baked_palette(), static_cast<int>(m.palette.size()), row0, row1, job.inst.anim.w, ve);
+    }
+    if (ve.lo.x <= ve.hi.x) {
+      const WindowRects vr = vertex_rects(ve, win.size, std::ceil(0.5f + 0.875f * tpp));
+      next.rect = rect_intersection(next.rect, vr.quad);
+      snap_rect = rect_intersection(snap_rect, vr.snapshot);
+      next.fitted = false;
+    }
+  }
+  s = snapshot_gpu(job.inst, cam, r, win, page, snap_rect, next.rect, slot, next.fitted, tpp);
+  s.part.x = static_cast<float>(p);
   const std::size_t prims = m.lods[static_cast<std::size_t>(job.slod)].primitives.size();
   tris = 0;
   for (std::size_t k = 0; k < prims; ++k)

@@ -116,18 +116,19 @@ struct ImpostorConfig {
   // MSAA, 1.32-1.43 -> 1.18-1.19 times its frame time at one sample; part cards at 8 degrees draw
   // 1.8 % more quad texels (within the timing noise).
   bool fit_quads_to_coverage = true;
-  // With fit_quads_to_coverage, whole impostors' quads are fitted on the CPU instead: the planner
-  // skins the snapshot level's vertices as the snapshot shader does and projects them with the
-  // snapshot camera; their extent, widened by the taps' reach, bounds every texel the snapshot
-  // covers, so the pictures are the same, and a frame whose snapshots are all whole impostors needs
-  // no coverage pass (a dispatch and a barrier, which llvmpipe carries out as a finish). Part cards
-  // keep the pass. Flow test bed on llvmpipe (thirty-eighth session, alternated runs, the same
-  // PSNR to the third decimal): the same frame times within the noise (main run 1.93-2.02 against
-  // 1.97-2.00 ms; RiggedSimple orbiting at 17 degrees 3.9-4.9x against 3.8-4.4x; the Fox and
-  // CesiumMan at 8 degrees within their spread), 5 % more quad texels (vertices lie up to a texel
-  // past the texel centres they cover), planning +0.04 ms a frame for our four bodies. Off by
-  // default: not measured on a GPU, where the pass it removes was 0.07 ms of the H200's 0.3 ms
-  // impostor frame at 20 humans.
+  // With fit_quads_to_coverage, the quads are fitted on the CPU instead: the planner skins the
+  // snapshot level's vertices (a part card's: its triangles') as the snapshot shader does and
+  // projects them with the snapshot camera; their extent, widened by the taps' reach, bounds every
+  // texel the snapshot covers, so the pictures are the same, and a frame needs no coverage pass (a
+  // dispatch and a barrier, which llvmpipe carries out as a finish; depth-corrected cards still
+  // take it for their wide offsets). Flow test bed on llvmpipe (thirty-eighth session, alternated
+  // runs): whole impostors the same within the noise (main run 1.93-2.02 against 1.97-2.00 ms,
+  // planning +0.04 ms for our four bodies; RiggedSimple orbiting at 17 degrees 3.9-4.9x against
+  // 3.8-4.4x), 5 % more quad texels (vertices lie up to a texel past the texel centres they cover);
+  // part cards at 8 degrees 4.62-4.65 against 4.81-4.91 ms (planning +0.17 ms, 7 % more quad
+  // texels), 25.828 against 25.830 dB. Off by default: the fit costs CPU time per vertex (a near,
+  // finely meshed character's every snapshot), the pass GPU time per texel, and on a GPU it is not
+  // measured yet (the pass was 0.07 ms of the H200's 0.3 ms impostor frame at 20 humans).
   bool fit_quads_from_vertices = false;
   // Invocations per side of the coverage pass's work groups (one group per new snapshot; 4, 8 or
   // 16; 0: 4 on a software rasterizer, 16 on a GPU). Each invocation walks its share of the
