@@ -1046,12 +1046,16 @@ FramePlanner::PartCache FramePlanner::part_card(const PartJob& job, const Charac
     const MeshLod& ml = m.lods[static_cast<std::size_t>(job.slod)];
     const ModelFrame mf = model_frame(cam, ch);
     const int row0 = static_cast<int>(job.inst.anim.y), row1 = static_cast<int>(job.inst.anim.z);
-    PlaneExtent ve;
+    thread_local std::vector<std::uint32_t> idx;  // the part's index ranges of every primitive, in one list
+    idx.clear();
     for (std::size_t k = 0; k < ml.primitives.size(); ++k) {
       const PartIndices::Range& range = pi.ranges[k * static_cast<std::size_t>(parts_) + static_cast<std::size_t>(p)];
-      add_skinned_vertices(cam, mf, ml, std::span<const std::uint32_t>(pi.indices).subspan(range.first, range.count),
-                           m.baked_palette(), static_cast<int>(m.palette.size()), row0, row1, job.inst.anim.w, ve);
+      idx.insert(idx.end(), pi.indices.begin() + range.first, pi.indices.begin() + range.first + range.count);
     }
+    PlaneExtent ve;
+    if (!idx.empty())
+      add_skinned_vertices(cam, mf, ml, idx, m.baked_palette(), static_cast<int>(m.palette.size()), row0, row1,
+                           job.inst.anim.w, ve);
     if (ve.lo.x <= ve.hi.x) {
       const WindowRects vr = vertex_rects(ve, win.size, std::ceil(0.5f + 0.875f * tpp));
       next.rect = rect_intersection(next.rect, vr.quad);
