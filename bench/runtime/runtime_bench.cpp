@@ -105,6 +105,14 @@ ImpostorConfig paper_thresholds(int budget) {
 }
 void BM_UpdateWalking(benchmark::State& state) { walk(state, paper_thresholds(0)); }
 BENCHMARK(BM_UpdateWalking)->Arg(10000)->Unit(benchmark::kMicrosecond);
+// The same with each refreshed impostor's quad fitted on the CPU from its skinned vertices
+// (ImpostorConfig::fit_quads_from_vertices) instead of by the GPU's coverage pass.
+void BM_UpdateWalkingVertexFit(benchmark::State& state) {
+  ImpostorConfig cfg = paper_thresholds(0);
+  cfg.fit_quads_from_vertices = true;
+  walk(state, cfg);
+}
+BENCHMARK(BM_UpdateWalkingVertexFit)->Arg(10000)->Unit(benchmark::kMicrosecond);
 void BM_UpdateWalkingBudget(benchmark::State& state) { walk(state, paper_thresholds(100)); }
 BENCHMARK(BM_UpdateWalkingBudget)->Arg(10000)->Unit(benchmark::kMicrosecond);
 
@@ -131,6 +139,14 @@ void BM_UpdatePartCards(benchmark::State& state) {
   walk(state, cfg, "card_refresh_fraction");
 }
 BENCHMARK(BM_UpdatePartCards)->Arg(1000)->Unit(benchmark::kMicrosecond);
+void BM_UpdatePartCardsVertexFit(benchmark::State& state) {
+  ImpostorConfig cfg{.max_pages = 256};
+  cfg.part_cards = true;
+  cfg.cache.posture_test = false;
+  cfg.fit_quads_from_vertices = true;
+  walk(state, cfg, "card_refresh_fraction");
+}
+BENCHMARK(BM_UpdatePartCardsVertexFit)->Arg(1000)->Unit(benchmark::kMicrosecond);
 
 // The geometry path's CPU work: animation state, culling, LOD.
 void BM_UpdateGeometry(benchmark::State& state) {
