@@ -466,9 +466,9 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
       }
     }
     if (compare) {
-      double p = psnr_covered(imgs.geometry.data(), imgs.impostor.data(), s.width, s.height);
+      const PsnrPair both = psnr_both(imgs.geometry.data(), imgs.impostor.data(), s.width, s.height);
+      double p = both.covered, r = both.reference;
       double q = ssim_covered(imgs.geometry.data(), imgs.impostor.data(), s.width, s.height);
-      double r = psnr_reference(imgs.geometry.data(), imgs.impostor.data(), s.width, s.height);
       if (std::isinf(p)) p = 99.0;
       if (std::isinf(r)) r = 99.0;
       psnr_sum += p;

@@ -34,19 +34,30 @@ CoveredError covered_error(const unsigned char* a, const unsigned char* b, int w
   return e;
 }
 
-}  // namespace
-
-double psnr_covered(const unsigned char* a, const unsigned char* b, int w, int h) {
-  const CoveredError e = covered_error(a, b, w, h);
+double covered_psnr(const CoveredError& e) {
   if (e.either == 0 || e.se == 0) return std::numeric_limits<double>::infinity();
   return 10.0 * std::log10(255.0 * 255.0 * static_cast<double>(e.either) / e.se);
 }
 
-double psnr_reference(const unsigned char* ref, const unsigned char* test, int w, int h) {
-  const CoveredError e = covered_error(ref, test, w, h);
+double reference_psnr(const CoveredError& e) {
   if (e.se == 0) return std::numeric_limits<double>::infinity();
   if (e.in_a == 0) return 0.0;
   return 10.0 * std::log10(255.0 * 255.0 * static_cast<double>(e.in_a) / e.se);
+}
+
+}  // namespace
+
+double psnr_covered(const unsigned char* a, const unsigned char* b, int w, int h) {
+  return covered_psnr(covered_error(a, b, w, h));
+}
+
+double psnr_reference(const unsigned char* ref, const unsigned char* test, int w, int h) {
+  return reference_psnr(covered_error(ref, test, w, h));
+}
+
+PsnrPair psnr_both(const unsigned char* ref, const unsigned char* test, int w, int h) {
+  const CoveredError e = covered_error(ref, test, w, h);
+  return {covered_psnr(e), reference_psnr(e)};
 }
 
 double ssim_covered(const unsigned char* a, const unsigned char* b, int w, int h) {

@@ -17,6 +17,12 @@ double psnr_covered(const unsigned char* a, const unsigned char* b, int width, i
 // are equal where covered; 0 when `ref` covers nothing but `test` does.
 double psnr_reference(const unsigned char* ref, const unsigned char* test, int width, int height);
 
+// psnr_covered(ref, test) and psnr_reference(ref, test) from one pass over the images.
+struct PsnrPair {
+  double covered = 0, reference = 0;
+};
+PsnrPair psnr_both(const unsigned char* ref, const unsigned char* test, int width, int height);
+
 // Mean SSIM of the luma over 8x8 windows (stride 4) that hold a covered pixel in either image.
 double ssim_covered(const unsigned char* a, const unsigned char* b, int width, int height);
 

@@ -33,13 +33,36 @@ struct PlaneExtent {
   glm::vec2 lo{1e30f}, hi{-1e30f};
 };
 
+// A snapshot camera's projection: a point (x, y, z) of its frame (Ho, Uo, Vo; metres from the
+// snapshot's centre) to window units, on the plane through the centre, as the snapshot shader
+// projects it.
+struct WindowProjection {
+  explicit WindowProjection(const SnapshotCamera& cam)
+      : inv_half(1.0f / cam.half_size), dist(cam.distance), inv_dist(1.0f / cam.distance), near(1e-3f * cam.distance),
+        offset(cam.offset), perspective(cam.perspective) {}
+  glm::vec2 operator()(float x, float y, float z) const {
+    if (perspective) {
+      from_eye(x, y, z);
+      return glm::vec2(x, y);
+    }
+    return glm::vec2(x, y) * inv_half;
+  }
+  void from_eye(float& x, float& y, float z) const {  // perspective, in place
+    const float s = inv_half * dist / std::max(dist + z, near);
+    x = (x - offset.x * (z * inv_dist)) * s;  // off-axis window (aligned snapshots)
+    y = (y - offset.y * (z * inv_dist)) * s;
+  }
+  float inv_half, dist, inv_dist, near;
+  glm::vec2 offset;
+  bool perspective;
+};
+
 // Adds the box centre ± a0 ± a1 ± a2 (half edges), centre and edges in the snapshot camera's frame
 // (Ho, Uo, Vo; metres from the snapshot's centre), to `e`.
 // The corners are summed there: the refresh of a character with part-tight quads projects one box
 // per body part (the worst case of the test bed: 1,000 refreshes a frame).
 void add_framed_box(const SnapshotCamera& cam, const glm::vec3& c, const glm::vec3& a0, const glm::vec3& a1,
                     const glm::vec3& a2, PlaneExtent& e) {
-  const float inv_half = 1.0f / cam.half_size;
   // Corner k's signs along the three axes (bits 0, 1, 2 of k); lanes the compiler can vectorize.
   static constexpr float s0[8] = {-1, 1, -1, 1, -1, 1, -1, 1}, s1[8] = {-1, -1, 1, 1, -1, -1, 1, 1},
                          s2[8] = {-1, -1, -1, -1, 1, 1, 1, 1};
@@ -49,17 +72,13 @@ void add_framed_box(const SnapshotCamera& cam, const glm::vec3& c, const glm::ve
     y[k] = c.y + s0[k] * a0.y + s1[k] * a1.y + s2[k] * a2.y;
     z[k] = c.z + s0[k] * a0.z + s1[k] * a1.z + s2[k] * a2.z;
   }
-  if (cam.perspective) {
-    const float dist = cam.distance, near = 1e-3f * cam.distance, inv_dist = 1.0f / cam.distance;
-    for (int k = 0; k < 8; ++k) {
-      const float s = inv_half * dist / std::max(dist + z[k], near);
-      x[k] = (x[k] - cam.offset.x * (z[k] * inv_dist)) * s;  // off-axis window (aligned snapshots)
-      y[k] = (y[k] - cam.offset.y * (z[k] * inv_dist)) * s;
-    }
+  const WindowProjection project(cam);
+  if (project.perspective) {  // a loop each way, so that each vectorizes
+    for (int k = 0; k < 8; ++k) project.from_eye(x[k], y[k], z[k]);
   } else {
     for (int k = 0; k < 8; ++k) {
-      x[k] *= inv_half;
-      y[k] *= inv_half;
+      x[k] *= project.inv_half;
+      y[k] *= project.inv_half;
     }
   }
   float x0 = x[0], x1 = x[0], y0 = y[0], y1 = y[0];
@@ -127,6 +146,11 @@ WindowRects window_rects(const PlaneExtent& e, int window_size) {
           glm::vec4(glm::clamp((t0 - 4.0f) * texel, -1.0f, 1.0f), glm::clamp((t1 + 4.0f) * texel, -1.0f, 1.0f))};
 }
 
+// How far (texels, whole) the impostor shader's taps at a pixel reach into a window of
+// `texels_per_pixel`: half a texel for the bilinear filter, then half a pixel and the taps'
+// 0.375-pixel offset. A quad fitted to a snapshot's covered texels is widened by it.
+float taps_reach(float texels_per_pixel) { return std::ceil(0.5f + 0.875f * texels_per_pixel); }
+
 // What the GPU needs to draw one snapshot of `instance` with `cam` (its window centred on cam.ta,
 // the subject a sphere of `radius` metres) into `win` of a `page`-pixel atlas page, clearing `rect`
 // of the window.
@@ -151,7 +175,7 @@ SnapshotGpu snapshot_gpu(const InstanceGpu& instance, const SnapshotCamera& cam,
   s.quad = quad;
   s.part.y = static_cast<float>(slot);
   s.part.z = fit ? 1.0f : 0.0f;
-  s.part.w = std::ceil(0.5f + 0.875f * texels_per_pixel);
+  s.part.w = taps_reach(texels_per_pixel);
   return s;
 }
 
@@ -168,88 +192,19 @@ glm::mat4 palette_matrix(std::span<const glm::vec4> pal, int entries, const Bake
   return pm;
 }
 
-// The rows of palette entry `entry`'s matrix (model = rows * (p, 1)) between baked frames f0 and f1.
-void palette_rows(std::span<const glm::vec4> pal, int entries, const BakedClip& bc, int f0, int f1, float blend, int entry,
-                  glm::vec4 (&rows)[3]) {
-  const glm::vec4* a = &pal[((bc.first_row + f0) * static_cast<std::size_t>(entries) + entry) * 3];
-  const glm::vec4* b = &pal[((bc.first_row + f1) * static_cast<std::size_t>(entries) + entry) * 3];
+// The rows of palette entry `entry`'s matrix (model = rows * (p, 1)) between the baked palette's
+// rows `row0` and `row1` (absolute: InstanceGpu::anim's y and z).
+inline void palette_rows_at(std::span<const glm::vec4> pal, int entries, int row0, int row1, float blend, int entry,
+                            glm::vec4 (&rows)[3]) {
+  const glm::vec4* a = &pal[(static_cast<std::size_t>(row0) * entries + entry) * 3];
+  const glm::vec4* b = &pal[(static_cast<std::size_t>(row1) * entries + entry) * 3];
   for (int r = 0; r < 3; ++r) rows[r] = a[r] + (b[r] - a[r]) * blend;
 }
 
-// Adds the vertices of level `ml` (all of them, or those that `indices` names), skinned between
-// the baked palette's rows `row0` and `row1` (absolute: InstanceGpu::anim's y and z) as the
-// snapshot shader skins them and placed by `mf`, to `e` in `cam`'s window units (ImpostorConfig::
-// fit_quads_from_vertices): the extent of the snapshot's triangles, so of every texel they cover.
-void add_skinned_vertices(const SnapshotCamera& cam, const ModelFrame& mf, const MeshLod& ml,
-                          std::span<const std::uint32_t> indices, std::span<const glm::vec4> pal, int entries, int row0,
-                          int row1, float blend, PlaneExtent& e) {
-  thread_local std::vector<glm::vec4> g;  // per palette entry: its rows projected on Ho, Uo, Vo
-  thread_local std::vector<std::uint32_t> seen;  // per vertex: the call that took it (indices share vertices)
-  thread_local std::uint32_t call = 0;
-  g.resize(static_cast<std::size_t>(entries) * 3);
-  for (int k = 0; k < entries; ++k) {
-    const glm::vec4* a = &pal[(static_cast<std::size_t>(row0) * entries + k) * 3];
-    const glm::vec4* b = &pal[(static_cast<std::size_t>(row1) * entries + k) * 3];
-    glm::vec4 rows[3];
-    for (int r = 0; r < 3; ++r) rows[r] = a[r] + (b[r] - a[r]) * blend;
-    for (int j = 0; j < 3; ++j) g[static_cast<std::size_t>(k) * 3 + j] = mf.f[j].x * rows[0] + mf.f[j].y * rows[1] + mf.f[j].z * rows[2];
-  }
-  const float inv_half = 1.0f / cam.half_size;
-  const float dist = cam.distance, near = 1e-3f * cam.distance, inv_dist = 1.0f / cam.distance;
-  glm::vec2 lo = e.lo, hi = e.hi;
-  auto add = [&](const Vertex& v) {
-    glm::vec4 a(0.0f), b(0.0f), c(0.0f);
-    for (int k = 0; k < 4; ++k) {
-      const float w = v.weights[k];
-      if (w <= 0.0f) continue;
-      const glm::vec4* gk = &g[static_cast<std::size_t>(v.joints[k]) * 3];
-      a += w * gk[0];
-      b += w * gk[1];
-      c += w * gk[2];
-    }
-    const glm::vec4 p(v.position, 1.0f);
-    float x = mf.k[0] + glm::dot(a, p), y = mf.k[1] + glm::dot(b, p);
-    if (cam.perspective) {  // as add_framed_box
-      const float z = mf.k[2] + glm::dot(c, p);
-      const float s = inv_half * dist / std::max(dist + z, near);
-      x = (x - cam.offset.x * (z * inv_dist)) * s;
-      y = (y - cam.offset.y * (z * inv_dist)) * s;
-    } else {
-      x *= inv_half;
-      y *= inv_half;
-    }
-    lo = glm::min(lo, glm::vec2(x, y));
-    hi = glm::max(hi, glm::vec2(x, y));
-  };
-  if (indices.empty()) {
-    for (const Vertex& v : ml.vertices) add(v);
-  } else {
-    if (seen.size() < ml.vertices.size()) seen.resize(ml.vertices.size(), 0);
-    if (++call == 0) {  // wrapped: forget every mark
-      std::fill(seen.begin(), seen.end(), 0u);
-      call = 1;
-    }
-    for (std::uint32_t i : indices)
-      if (seen[i] != call) {
-        seen[i] = call;
-        add(ml.vertices[i]);
-      }
-  }
-  e.lo = lo;
-  e.hi = hi;
-}
-
-// A quad and a cleared rect (window units) around the extent `e` of a snapshot's skinned vertices
-// in a `window_size` window: the quad holds the texels the extent touches widened by `reach` texels
-// (the impostor taps', as the coverage pass widens its rectangle: snapshot_gpu), and the cleared
-// rect the quad widened by the taps' reach again and a texel, so that no tap of a pixel in the
-// quad reads a texel an earlier snapshot left.
-WindowRects vertex_rects(const PlaneExtent& e, int window_size, float reach) {
-  const float texel = 2.0f / static_cast<float>(window_size);
-  const glm::vec2 t0 = glm::floor(e.lo / texel), t1 = glm::ceil(e.hi / texel);
-  const float clear = 2.0f * reach + 1.0f;
-  return {glm::vec4(glm::clamp((t0 - reach) * texel, -1.0f, 1.0f), glm::clamp((t1 + reach) * texel, -1.0f, 1.0f)),
-          glm::vec4(glm::clamp((t0 - clear) * texel, -1.0f, 1.0f), glm::clamp((t1 + clear) * texel, -1.0f, 1.0f))};
+// The same between baked frames f0 and f1 of `bc`.
+void palette_rows(std::span<const glm::vec4> pal, int entries, const BakedClip& bc, int f0, int f1, float blend, int entry,
+                  glm::vec4 (&rows)[3]) {
+  palette_rows_at(pal, entries, bc.first_row + f0, bc.first_row + f1, blend, entry, rows);
 }
 
 // Model space -> world for character `ch` (scale, yaw about +Y, position).
@@ -263,6 +218,81 @@ glm::mat4 placement(const Character& ch) {
 glm::vec4 rect_intersection(const glm::vec4& a, const glm::vec4& b) {
   return glm::vec4(glm::max(glm::vec2(a), glm::vec2(b)), glm::min(glm::vec2(a.z, a.w), glm::vec2(b.z, b.w)));
 }
+
+// The extent, in a snapshot camera's window units, of a character's vertices skinned as the
+// snapshot shader skins them (ImpostorConfig::fit_quads_from_vertices): that of the snapshot's
+// triangles, so of every texel they cover. Each palette entry's rows (between the baked palette's
+// rows `row0` and `row1`) are projected once on the camera's axes, placed by `mf`.
+class SkinnedExtent {
+ public:
+  SkinnedExtent(const SnapshotCamera& cam, const ModelFrame& mf, std::span<const glm::vec4> pal, int entries, int row0,
+                int row1, float blend)
+      : project_(cam), mf_(mf) {
+    g_.resize(static_cast<std::size_t>(entries) * 3);
+    rows_ = g_.data();
+    for (int k = 0; k < entries; ++k) {
+      glm::vec4 rows[3];
+      palette_rows_at(pal, entries, row0, row1, blend, k, rows);
+      for (int j = 0; j < 3; ++j) g_[static_cast<std::size_t>(k) * 3 + j] = mf.f[j].x * rows[0] + mf.f[j].y * rows[1] + mf.f[j].z * rows[2];
+    }
+    if (++call_ == 0) {  // wrapped: forget every mark
+      std::fill(seen_.begin(), seen_.end(), 0u);
+      call_ = 1;
+    }
+  }
+  void add(const Vertex& v) {
+    glm::vec4 a(0.0f), b(0.0f), c(0.0f);
+    for (int k = 0; k < 4; ++k) {
+      const float w = v.weights[k];
+      if (w <= 0.0f) continue;
+      const glm::vec4* gk = rows_ + static_cast<std::size_t>(v.joints[k]) * 3;
+      a += w * gk[0];
+      b += w * gk[1];
+      c += w * gk[2];
+    }
+    const glm::vec4 p(v.position, 1.0f);
+    const glm::vec2 w = project_(mf_.k[0] + glm::dot(a, p), mf_.k[1] + glm::dot(b, p), mf_.k[2] + glm::dot(c, p));
+    extent.lo = glm::min(extent.lo, w);
+    extent.hi = glm::max(extent.hi, w);
+  }
+  // The vertices of `ml` that `indices` names, each once over this object's life (triangles share them).
+  void add_once(const MeshLod& ml, std::span<const std::uint32_t> indices) {
+    if (seen_.size() < ml.vertices.size()) seen_.resize(ml.vertices.size(), 0);
+    for (std::uint32_t i : indices)
+      if (seen_[i] != call_) {
+        seen_[i] = call_;
+        add(ml.vertices[i]);
+      }
+  }
+  // Shrinks the quad and the cleared rect of a snapshot in a `window_size` window to the extent's
+  // texels (false where nothing was added): the quad widened by the taps' reach at
+  // `texels_per_pixel`, as the coverage pass widens its rectangle, and the cleared rect by that
+  // reach again and a texel, so that no tap of a pixel in the quad reads a texel an earlier
+  // snapshot left.
+  bool fit(int window_size, float texels_per_pixel, glm::vec4& quad, glm::vec4& cleared) const {
+    if (!(extent.lo.x <= extent.hi.x)) return false;
+    const float texel = 2.0f / static_cast<float>(window_size), reach = taps_reach(texels_per_pixel);
+    const glm::vec2 t0 = glm::floor(extent.lo / texel), t1 = glm::ceil(extent.hi / texel);
+    auto widened = [&](float m) {
+      return glm::vec4(glm::clamp((t0 - m) * texel, -1.0f, 1.0f), glm::clamp((t1 + m) * texel, -1.0f, 1.0f));
+    };
+    quad = rect_intersection(quad, widened(reach));
+    cleared = rect_intersection(cleared, widened(2.0f * reach + 1.0f));
+    return true;
+  }
+  PlaneExtent extent;
+
+ private:
+  WindowProjection project_;
+  const ModelFrame& mf_;
+  const glm::vec4* rows_ = nullptr;  // g_'s
+  static thread_local std::vector<glm::vec4> g_;  // per palette entry: its rows projected on Ho, Uo, Vo
+  static thread_local std::vector<std::uint32_t> seen_;  // per vertex: the object that took it
+  static thread_local std::uint32_t call_;
+};
+thread_local std::vector<glm::vec4> SkinnedExtent::g_;
+thread_local std::vector<std::uint32_t> SkinnedExtent::seen_;
+thread_local std::uint32_t SkinnedExtent::call_ = 0;
 
 // The posture distances (squared, model space) between baked frames f0 and f1 of `bc`.
 std::array<float, 4> posture_at(const BakedClip& bc, int f0, int f1, float blend) {
@@ -630,15 +660,10 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
         if (config_.fit_quads_from_vertices && next.fitted) {
           // The quad and the cleared rect from the skinned vertices, widened by the taps' reach as
           // the coverage pass widens its rectangle (snapshot_gpu): no pass, the same pictures.
-          PlaneExtent ve;
-          add_skinned_vertices(sc, model_frame(sc, ch), m.lods[slod], {}, pal, np, bc.first_row + f0, bc.first_row + f1,
-                               blend, ve);
-          if (ve.lo.x <= ve.hi.x) {
-            const WindowRects vr = vertex_rects(ve, win.size, std::ceil(0.5f + 0.875f * tpp));
-            next.rect = rect_intersection(next.rect, vr.quad);
-            snap_rect = rect_intersection(snap_rect, vr.snapshot);
-            next.fitted = false;
-          }
+          const ModelFrame mf = model_frame(sc, ch);
+          SkinnedExtent se(sc, mf, pal, np, bc.first_row + f0, bc.first_row + f1, blend);
+          for (const Vertex& v : m.lods[slod].vertices) se.add(v);
+          next.fitted = !se.fit(win.size, tpp, next.rect, snap_rect);
         }
         cs = next;
         out.snapshots.add(slod,
@@ -1045,23 +1070,13 @@ FramePlanner::PartCache FramePlanner::part_card(const PartJob& job, const Charac
     // range of the part index list) instead of the coverage pass.
     const MeshLod& ml = m.lods[static_cast<std::size_t>(job.slod)];
     const ModelFrame mf = model_frame(cam, ch);
-    const int row0 = static_cast<int>(job.inst.anim.y), row1 = static_cast<int>(job.inst.anim.z);
-    thread_local std::vector<std::uint32_t> idx;  // the part's index ranges of every primitive, in one list
-    idx.clear();
+    SkinnedExtent se(cam, mf, m.baked_palette(), static_cast<int>(m.palette.size()), static_cast<int>(job.inst.anim.y),
+                     static_cast<int>(job.inst.anim.z), job.inst.anim.w);
     for (std::size_t k = 0; k < ml.primitives.size(); ++k) {
       const PartIndices::Range& range = pi.ranges[k * static_cast<std::size_t>(parts_) + static_cast<std::size_t>(p)];
-      idx.insert(idx.end(), pi.indices.begin() + range.first, pi.indices.begin() + range.first + range.count);
+      se.add_once(ml, std::span<const std::uint32_t>(pi.indices).subspan(range.first, range.count));
     }
-    PlaneExtent ve;
-    if (!idx.empty())
-      add_skinned_vertices(cam, mf, ml, idx, m.baked_palette(), static_cast<int>(m.palette.size()), row0, row1,
-                           job.inst.anim.w, ve);
-    if (ve.lo.x <= ve.hi.x) {
-      const WindowRects vr = vertex_rects(ve, win.size, std::ceil(0.5f + 0.875f * tpp));
-      next.rect = rect_intersection(next.rect, vr.quad);
-      snap_rect = rect_intersection(snap_rect, vr.snapshot);
-      next.fitted = false;
-    }
+    next.fitted = !se.fit(win.size, tpp, next.rect, snap_rect);
   }
   s = snapshot_gpu(job.inst, cam, r, win, page, snap_rect, next.rect, slot, next.fitted, tpp);
   s.part.x = static_cast<float>(p);

@@ -39,6 +39,10 @@ TEST(ImageMetrics, ReferencePsnrCountsAHaloAsErrorNotAsPixels) {
   EXPECT_NEAR(psnr_reference(ref.data(), halo.data(), 3, 1), 10 * std::log10(255.0 * 255.0 / (306.0 / 3.0)), 1e-9);
   EXPECT_LT(psnr_reference(ref.data(), halo.data(), 3, 1), bare_db);
   EXPECT_TRUE(std::isinf(psnr_reference(ref.data(), ref.data(), 3, 1)));
+  // Both from one pass: the same numbers.
+  const PsnrPair both = psnr_both(ref.data(), halo.data(), 3, 1);
+  EXPECT_EQ(both.covered, psnr_covered(ref.data(), halo.data(), 3, 1));
+  EXPECT_EQ(both.reference, psnr_reference(ref.data(), halo.data(), 3, 1));
   // A test image over an empty reference: nothing to measure against, 0 dB.
   std::vector<unsigned char> empty(12, 0);
   EXPECT_EQ(psnr_reference(empty.data(), halo.data(), 3, 1), 0.0);
