@@ -95,6 +95,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["snapshot_samples"] = s.snapshot_samples;
   j["impostor_taps"] = s.snapshot_samples > 1 ? 1 : s.impostor_taps;
   j["quad_fit"] = !s.fit_quads ? "boxes" : s.fit_from_vertices ? "vertices" : "coverage";
+  j["atlas"] = s.shared_atlas ? "shared" : "per-model";
   if (s.fit_quads) j["coverage_group"] = r.coverage_group;
   j["short_lived"] = r.short_lived_as_geometry ? "geometry" : "snapshot";
   if (r.short_lived_as_geometry) j["short_lived_geometry"] = r.short_lived_geometry;
@@ -382,6 +383,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     return fail("--quad-fit: expected boxes, coverage or vertices (got \"" + a.quad_fit + "\")");
   s.fit_quads = a.quad_fit != "boxes";
   s.fit_from_vertices = a.quad_fit == "vertices";
+  if (a.atlas != "shared" && a.atlas != "per-model")
+    return fail("--atlas: expected shared or per-model (got \"" + a.atlas + "\")");
+  s.shared_atlas = a.atlas == "shared";
   if (a.coverage_group != "auto" && a.coverage_group != "4" && a.coverage_group != "8" && a.coverage_group != "16")
     return fail("--coverage-group: expected auto, 4, 8 or 16 (got \"" + a.coverage_group + "\")");
   s.coverage_group = a.coverage_group == "auto" ? 0 : std::stoi(a.coverage_group);
@@ -851,6 +855,9 @@ void add_flow_command(CLI::App& app, int* status) {
       ->capture_default_str();
   cmd->add_option("--quad-fit", a->quad_fit,
                   "Impostor quads: boxes (the projected pose and part boxes), coverage (shrunk on the GPU to the snapshot's covered texels) or vertices (shrunk on the CPU to the snapshot's skinned vertices: the same pictures without the GPU pass)")
+      ->capture_default_str();
+  cmd->add_option("--atlas", a->atlas,
+                  "With several --model: shared (one atlas for every model's impostors, so that their quads are drawn back to front in one draw) or per-model (an atlas each: a draw per model and per layer of overlaps between models)")
       ->capture_default_str();
   cmd->add_option("--coverage-group", a->coverage_group,
                   "With --quad-fit coverage: invocations per side of the coverage pass's work groups, one group per new snapshot: 4, 8, 16 or auto (4 on a software rasterizer such as llvmpipe, which runs a group's invocations as one thread's SIMD lanes; 16 on a GPU, where a group waits for its invocations' walk over the window); the same rectangles whatever the size")

@@ -82,6 +82,7 @@ struct FlowSettings {
   int impostor_taps = 4;                    // ImpostorConfig::impostor_taps
   bool fit_quads = true;                    // ImpostorConfig::fit_quads_to_coverage
   bool fit_from_vertices = false;           // ImpostorConfig::fit_quads_from_vertices (--quad-fit vertices)
+  bool shared_atlas = true;                 // one atlas for every model (shared_atlas_config), else one each
   int coverage_group = 0;                   // ImpostorConfig::coverage_group (0: by the rasterizer)
   bool time_stages = false;                 // GPU timestamps between the renderer's stages (gpu_ms_stages)
   int flush_every_indices = -1;             // DrawOptions::flush_every_indices (-1: auto, 0: never)
@@ -212,6 +213,7 @@ struct FlowArgs {
   int snapshot_samples = 1;
   std::string impostor_taps = "auto";
   std::string quad_fit = "coverage";
+  std::string atlas = "shared";
   std::string coverage_group = "auto";
   bool gpu_stages = false;
   std::string flush_every = "auto";

@@ -201,16 +201,24 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   std::vector<Renderer*> renderer_ptrs;  // the same, for Renderer::draw_many
   std::vector<std::unique_ptr<FramePlanner>> planners;
   std::vector<Crowd> crowds;
-  for (int m = 0; m < nm; ++m) {
-    // Enough atlas for the model's share of the crowd: windows of 256 px, 16 per 1024 page.
-    const int humans_m = (s.humans + nm - 1 - m) / nm;
-    config.max_pages = std::clamp(humans_m / 8 + 4, 8, 64);
+  // Enough atlas for each model's share of the crowd: windows of 256 px, 16 per 1024 page; with
+  // --atlas shared (the default) the models' pages are parts of one atlas, one after another.
+  auto humans_of = [&](int m) { return (s.humans + nm - 1 - m) / nm; };
+  auto pages_of = [&](int m) { return std::clamp(humans_of(m) / 8 + 4, 8, 64); };
+  int shared_pages = 0;
+  for (int m = 0; m < nm; ++m) shared_pages += pages_of(m);
+  for (int m = 0, first_page = 0; m < nm; ++m) {
+    const int humans_m = humans_of(m);
+    config.max_pages = pages_of(m);
+    config.first_page = s.shared_atlas ? first_page : 0;
+    config.atlas_pages = s.shared_atlas ? shared_pages : 0;
+    first_page += config.max_pages;
     // The refresh budget is the crowd's: each model's planner gets its share (at least one).
     config.cache.refresh_budget =
         s.refresh_budget > 0 ? std::max(1, s.refresh_budget / nm + (m < s.refresh_budget % nm ? 1 : 0)) : 0;
     config.cache.ahead_fraction = s.refresh_ahead;
     config.cache.ahead_count = s.ahead_count;
-    auto r = Renderer::create(*models[m], config);
+    auto r = Renderer::create(*models[m], config, s.shared_atlas && m > 0 ? renderers.front().get() : nullptr);
     if (!r) return r.error();
     renderers.push_back(std::move(*r));
     renderer_ptrs.push_back(renderers.back().get());
@@ -352,7 +360,8 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
       for (int m = 0; m < nm; ++m) plans[m] = &planners[m]->plan_of_last_frame();
       auto t1 = Clock::now();
       // Every model's snapshots, then geometry, then the impostors in one back-to-front order across
-      // the models (Renderer::draw_many; with --gpu-stages model after model).
+      // the models (Renderer::draw_many: one draw with --atlas shared, layers of a draw per model
+      // with per-model; with --gpu-stages model after model).
       Renderer::draw_many(renderer_ptrs, plans, draw_options);
       auto t2 = Clock::now();
       gpu_finish();

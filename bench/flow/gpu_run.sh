@@ -364,6 +364,73 @@ set_s38() {
     done
   done
 }
+# Thirty-ninth session: the present code against the targets (the paper's 20 humans, the
+# worst case, the view sweep at 20 and 1,000 humans, crowd sizes, part cards at 8 degrees, anyone's
+# RiggedSimple at 10,000 and orbiting), then the vertex fit and refreshes ahead alternated with the
+# defaults, twice each.
+set_s39() {
+  local q="--impostor-parts --texels-per-pixel 2 --impostor-edges blend --card-depth pass"
+  flow s39_main $C4 --frames 120
+  flow s39_worst $C4 --frames 60 --posture 0 --view 0
+  flow s39_sweep_view $C4 --frames 60 --sweep view
+  flow s39_scaling $C4 --frames 2 --gpu-stages --scaling --scaling-humans 20,100,1000,2000,5000,10000 --scaling-frames 8
+  flow s39_sweep_view_h1000 $C4 --frames 40 --humans 1000 --sweep view
+  flow s39_parts_8 $C4 --frames 60 --view 8 --posture off --impostor-parts
+  flow s39_best_8 $C4 --frames 60 --view 8 --posture off $q
+  flow s39_rs --model $M/RiggedSimple.gltf --frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 16
+  flow s39_rs_orbit --model $M/RiggedSimple.gltf --frames 60 --orbit 30 --posture off --view 17
+  flow s39_worst_h1000 $C4 --frames 30 --humans 1000 --posture 0 --view 0
+}
+set_s39b() {
+  for i in 1 2; do
+    for q in coverage vertices; do
+      flow s39_main_${q}_$i $C4 --frames 120 --quad-fit $q
+      flow s39_main_stages_${q}_$i $C4 --frames 120 --gpu-stages --quad-fit $q
+      flow s39_parts_${q}_$i $C4 --frames 60 --impostor-parts --posture off --view 8 --quad-fit $q
+    done
+    for a in off 0.8; do
+      flow s39_main_a${a}_$i $C4 --frames 120 --refresh-ahead $a
+      flow s39_h1000_a${a}_$i $C4 --frames 40 --humans 1000 --refresh-ahead $a
+    done
+  done
+}
+# The same session: draw_many's quads put in their layers in one pass (instead of a pass a layer)
+# against the binary before (bench_flow_prev), each model's quads drawn apart (BB_SEPARATE_DRAWS, a
+# temporary switch in cli/flow_bed.cpp, since removed), and glibc's malloc on transparent huge pages (GLIBC_TUNABLES), alternated.
+set_s39c() {
+  local sc="--frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 16"
+  for i in 1 2 3; do
+    B=.gpu/bin/bench_flow_prev flow c_prev_sc_$i $C4 $sc
+    flow c_new_sc_$i $C4 $sc
+    BB_SEPARATE_DRAWS=1 flow c_sep_sc_$i $C4 $sc
+    GLIBC_TUNABLES=glibc.malloc.hugetlb=1 flow c_huge_sc_$i $C4 $sc
+    B=.gpu/bin/bench_flow_prev flow c_prev_h1000_$i $C4 --frames 40 --humans 1000
+    flow c_new_h1000_$i $C4 --frames 40 --humans 1000
+    BB_SEPARATE_DRAWS=1 flow c_sep_h1000_$i $C4 --frames 40 --humans 1000
+    flow c_rs_$i --model $M/RiggedSimple.gltf $sc
+    GLIBC_TUNABLES=glibc.malloc.hugetlb=1 flow c_rs_huge_$i --model $M/RiggedSimple.gltf $sc
+  done
+}
+# One atlas for the four bodies (--atlas shared, the default since: one back-to-front draw of every
+# model's quads) against an atlas each (--atlas per-model: a draw per model and per layer of
+# overlaps) and against drawing model after model (BB_SEPARATE_DRAWS, a temporary switch in
+# cli/flow_bed.cpp, since removed),
+# alternated.
+set_s39d() {
+  local sc="--frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 16"
+  for i in 1 2 3; do
+    for a in shared per-model; do
+      flow d_${a}_main_$i $C4 --frames 120 --atlas $a
+      flow d_${a}_h1000_$i $C4 --frames 40 --humans 1000 --atlas $a
+      flow d_${a}_sc_$i $C4 $sc --atlas $a
+      flow d_${a}_parts_$i $C4 --frames 60 --impostor-parts --posture off --view 8 --atlas $a
+    done
+    BB_SEPARATE_DRAWS=1 flow d_sep_h1000_$i $C4 --frames 40 --humans 1000 --atlas per-model
+  done
+  for a in shared per-model; do flow d_${a}_sweep_view_h1000 $C4 --frames 40 --humans 1000 --sweep view --atlas $a; done
+  flow d_shared_sweep_view $C4 --frames 60 --sweep view
+  flow d_shared_worst_h1000 $C4 --frames 30 --humans 1000 --posture 0 --view 0
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"

@@ -443,7 +443,7 @@ glm::vec3 character_ta(const Model& m, const Character& ch, float time) {
 }
 
 FramePlanner::FramePlanner(const Model& model, const ImpostorConfig& config)
-    : model_(&model), config_(config), atlas_(config.page_size, config.max_pages, config.windows) {
+    : model_(&model), config_(config), atlas_(config.page_size, config.max_pages, config.windows, config.first_page) {
   plan_.geometry.resize(model.lods.size());
   plan_.snapshots.resize(model.lods.size());
 }

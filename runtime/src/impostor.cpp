@@ -146,8 +146,8 @@ int choose_window(const WindowSizes& sizes, float pixels) {
   return best;
 }
 
-AtlasAllocator::AtlasAllocator(int page_size, int max_pages, const WindowSizes& sizes)
-    : page_size_(page_size), sizes_(sizes), pages_(static_cast<std::size_t>(std::max(1, max_pages))) {
+AtlasAllocator::AtlasAllocator(int page_size, int max_pages, const WindowSizes& sizes, int first_page)
+    : page_size_(page_size), first_page_(std::max(0, first_page)), sizes_(sizes), pages_(static_cast<std::size_t>(std::max(1, max_pages))) {
   assert(sizes.count >= 1 && sizes.count <= 8 && sizes.size[0] <= page_size);
   for (auto& v : open_pages_) v.reserve(pages_.size());
 }
@@ -181,7 +181,7 @@ std::optional<AtlasWindow> AtlasAllocator::allocate(int size_class) {
   ++windows_used_;
   if (pg.free_slots.empty()) open.erase(std::find(open.begin(), open.end(), p));
   AtlasWindow w;
-  w.page = p;
+  w.page = first_page_ + p;
   w.size = sizes_.size[size_class];
   w.size_class = size_class;
   w.slot = slot;
@@ -191,18 +191,19 @@ std::optional<AtlasWindow> AtlasAllocator::allocate(int size_class) {
 }
 
 void AtlasAllocator::release(const AtlasWindow& w) {
-  assert(w.valid() && w.page < static_cast<int>(pages_.size()));
-  Page& pg = pages_[w.page];
+  const int p = w.page - first_page_;
+  assert(w.valid() && p >= 0 && p < static_cast<int>(pages_.size()));
+  Page& pg = pages_[static_cast<std::size_t>(p)];
   assert(pg.size_class == w.size_class);
   auto& open = open_pages_[w.size_class];
-  if (pg.free_slots.empty()) open.push_back(w.page);
+  if (pg.free_slots.empty()) open.push_back(p);
   pg.free_slots.push_back(w.slot);
   --pg.used;
   --windows_used_;
   if (pg.used == 0) {  // give the page back to every class
     pg.size_class = -1;
     pg.free_slots.clear();
-    open.erase(std::find(open.begin(), open.end(), w.page));
+    open.erase(std::find(open.begin(), open.end(), p));
   }
 }
 

@@ -424,6 +424,30 @@ TEST(FlowCli, QuadsFromTheVerticesGiveThePassesPictures) {
   EXPECT_LT(tv, 1.2 * tp);
 }
 
+// Two models' crowds with one atlas (--atlas shared, the default: every quad in one back-to-front
+// draw) and with an atlas each (per-model: layers of a draw per model): the same frames.
+TEST(FlowCli, OneAtlasForSeveralModelsGivesTheSameFrames) {
+  std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
+  fs::path d = fs::temp_directory_path() / "bb_flow_cli_test_atlas";
+  const std::string args = "flow --model " + model + " --model " + model + " --size 480x384 --frames 8 --posture 0.1 --json -o " + d.string();
+  Out shared = run(args);
+  if (shared.text.find("EGL") != std::string::npos && shared.status != 0) GTEST_SKIP() << "no headless OpenGL: " << shared.text;
+  ASSERT_EQ(shared.status, 0) << shared.text;
+  Out own = run(args + " --atlas per-model");
+  ASSERT_EQ(own.status, 0) << own.text;
+  auto js = nlohmann::json::parse(last_json_line(shared.text));
+  auto jo = nlohmann::json::parse(last_json_line(own.text));
+  EXPECT_EQ(js["atlas"], "shared");
+  EXPECT_EQ(jo["atlas"], "per-model");
+  EXPECT_GT(js["refresh_fraction"].get<double>(), 0.0);
+  EXPECT_DOUBLE_EQ(js["psnr_db"].get<double>(), jo["psnr_db"].get<double>());
+  EXPECT_DOUBLE_EQ(js["ssim"].get<double>(), jo["ssim"].get<double>());
+  Out bad = run(args + " --atlas one");
+  EXPECT_NE(bad.status, 0);
+  EXPECT_NE(bad.text.find("--atlas"), std::string::npos) << bad.text;
+}
+
 // Impostor frames hold impostors only. With blended edges (the default) every sample of a pixel
 // gets the same colour, so on a software rasterizer the impostor path draws into a single-sampled
 // target (runtime::impostor_target_samples; on a GPU auto keeps the scene's samples) and its

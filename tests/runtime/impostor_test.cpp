@@ -198,6 +198,31 @@ TEST(Atlas, PacksSharesAndReleasesPages) {
   EXPECT_EQ(a.windows_used(), 16 + 16 + 1);
 }
 
+// A part of a shared atlas (ImpostorConfig::first_page): the same packing, its pages numbered from
+// the first; release and page_class take those numbers.
+TEST(Atlas, PartOfASharedAtlasNumbersItsPagesFromItsFirst) {
+  WindowSizes w;
+  AtlasAllocator a(1024, 2, w, 5);
+  EXPECT_EQ(a.first_page(), 5);
+  auto big = a.allocate(0);
+  auto small = a.allocate(3);
+  ASSERT_TRUE(big && small);
+  EXPECT_EQ(big->page, 5);
+  EXPECT_EQ(small->page, 6);
+  EXPECT_EQ(a.page_class(5), 0);
+  EXPECT_EQ(a.page_class(6), 3);
+  EXPECT_FALSE(a.allocate(1));  // both pages in use by other classes
+  a.release(*small);
+  EXPECT_EQ(a.page_class(6), -1);
+  auto mid = a.allocate(1);
+  ASSERT_TRUE(mid);
+  EXPECT_EQ(mid->page, 6);
+  EXPECT_EQ(coverage_slot(*mid, 1024, 8), (6 * 128 + mid->y / 8) * 128 + mid->x / 8);
+  a.release(*big);
+  a.release(*mid);
+  EXPECT_EQ(a.pages_used(), 0);
+}
+
 // A one-joint model with one triangle and a 1 s clip that stretches a second joint.
 Model tiny_model() {
   Model m;

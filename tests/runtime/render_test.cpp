@@ -348,6 +348,85 @@ TEST(CrowdRender, SeveralModelsBlendBackToFrontAcrossModels) {
   }
 }
 
+// The same two models' file with one atlas for both (shared_atlas_config, Renderer::create's
+// share_atlas): draw_many draws every quad in one back-to-front draw, and the frame is the one the
+// atlases of their own give with a draw per model and layer. The second model's windows lie in the
+// atlas's second half; the atlas outlives the renderer that made it; a config that does not fit it is
+// refused.
+TEST(CrowdRender, ModelsSharingAnAtlasDrawTheirQuadsInOneDraw) {
+  REQUIRE_GL();
+  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
+  auto m0 = load_model(path);
+  auto m1 = load_model(path);
+  ASSERT_TRUE(m0.ok() && m1.ok());
+  Crowd even(*m0), odd(*m1);
+  for (int i = 0; i < 8; ++i) (i % 2 ? odd : even).add(Character{glm::vec3(0.3f * i - 1.0f, 0, -1.2f * i), 0.3f, 1.0f, 0, 0.13f * i, 1.0f});
+  ImpostorConfig cfg = refresh_always();
+  cfg.max_pages = 4;
+  const ImpostorConfig c0 = shared_atlas_config(cfg, 0, 2), c1 = shared_atlas_config(cfg, 1, 2);
+  FramePlanner p_even(*m0, cfg), p_odd(*m1, cfg), q_even(*m0, c0), q_odd(*m1, c1);
+  auto r_even = Renderer::create(*m0, cfg), r_odd = Renderer::create(*m1, cfg);
+  auto s_even = Renderer::create(*m0, c0);
+  ASSERT_TRUE(r_even.ok() && r_odd.ok() && s_even.ok());
+  auto s_odd = Renderer::create(*m1, c1, s_even->get());
+  ASSERT_TRUE(s_odd.ok()) << s_odd.error().reason;
+  ImpostorConfig other = c1;
+  other.page_size = 512;
+  auto refused = Renderer::create(*m1, other, s_even->get());
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.error().reason.find("atlas"), std::string::npos) << refused.error().reason;
+  ImpostorConfig outside = c1;
+  outside.first_page = 6;  // pages 6 to 9 of 8
+  EXPECT_FALSE(Renderer::create(*m1, outside).ok());
+  auto target = OffscreenTarget::create(640, 512);
+  ASSERT_TRUE(target.ok());
+  SceneCamera cam;
+  cam.width = 640;
+  cam.height = 512;
+  cam.eye = {0.5f, 1.6f, 4.0f};
+  cam.target = {0.3f, 0.9f, -4.0f};
+  cam.fov_y = glm::radians(45.0f);
+  for (int f = 0; f < 2; ++f) {
+    const float t = 0.2f * f;
+    const FramePlan& pe = p_even.plan(even, cam, t, RenderMode::kImpostor);
+    const FramePlan& po = p_odd.plan(odd, cam, t, RenderMode::kImpostor);
+    const FramePlan& qe = q_even.plan(even, cam, t, RenderMode::kImpostor);
+    const FramePlan& qo = q_odd.plan(odd, cam, t, RenderMode::kImpostor);
+    ASSERT_EQ(qo.billboards.size(), 4u);
+    for (const BillboardGpu& b : qo.billboards) {
+      EXPECT_GE(b.layer.x, 4.0f);
+      EXPECT_LT(b.layer.x, 8.0f);
+    }
+    for (const BillboardGpu& b : qe.billboards) EXPECT_LT(b.layer.x, 4.0f);
+    (*target)->bind(true);
+    Renderer* rs[2] = {r_even->get(), r_odd->get()};
+    const FramePlan* ps[2] = {&pe, &po};
+    Renderer::draw_many(rs, ps);
+    Image own{640, 512, (*target)->read_rgba(), pe.stats, 0};
+    (*target)->bind(true);
+    Renderer* ss[2] = {s_even->get(), s_odd->get()};
+    const FramePlan* qs[2] = {&qe, &qo};
+    Renderer::draw_many(ss, qs);
+    Image shared{640, 512, (*target)->read_rgba(), qe.stats, 0};
+    int covered = 0, differ = 0;
+    for (std::size_t i = 0; i < own.rgba.size(); ++i) differ += own.rgba[i] != shared.rgba[i];
+    for (std::size_t i = 3; i < own.rgba.size(); i += 4) covered += own.rgba[i] > 0;
+    std::printf("frame %d: %d covered pixels, %d bytes differ between one atlas and two\n", f, covered, differ);
+    EXPECT_GT(covered, 10000);
+    EXPECT_EQ(differ, 0);
+  }
+  // The atlas lives on with the renderer that shares it: the odd walkers alone, drawn again.
+  s_even->reset();
+  (*target)->bind(true);
+  const FramePlan& qo = q_odd.plan(odd, cam, 0.4f, RenderMode::kImpostor);
+  (*s_odd)->draw(qo);
+  const std::vector<std::uint8_t> px = (*target)->read_rgba();
+  int covered = 0;
+  for (std::size_t i = 3; i < px.size(); i += 4) covered += px[i] > 0;
+  EXPECT_GT(covered, 4000);
+}
+
 // Twenty walkers on a circle seen from above the ring: the crowd path (planner + renderer) with
 // every character refreshed each frame, compared with geometry frame by frame.
 TEST(CrowdRender, ImpostorFramesMatchGeometryFrames) {

@@ -59,6 +59,13 @@ struct ImpostorConfig {
   WindowSizes windows;            // 256, 128, 64, 32 (section 4.3), 16, 8 by default
   int page_size = 1024;           // atlas page, pixels (square)
   int max_pages = 32;             // when all are full, characters fall back to geometry
+  // An atlas shared by several models (shared_atlas_config; the renderers made with
+  // Renderer::create's `share_atlas`): this model's pages are [first_page, first_page + max_pages)
+  // of an atlas of atlas_pages pages. Renderer::draw_many then draws every model's blended quads
+  // in one back-to-front draw, where models of atlases of their own take a draw per model and per
+  // layer of overlaps. 0, 0: an atlas of the model's own.
+  int first_page = 0;
+  int atlas_pages = 0;  // 0: max_pages
   CacheConfig cache;              // section 5
   // kAuto: a character whose on-screen diameter exceeds windows.size[0] * geometry_switch
   // pixels stays geometry (1.0: where a texel of the largest window would cover a pixel).
@@ -277,6 +284,14 @@ struct ImpostorConfig {
   bool short_lived_as_geometry = false;
 };
 inline constexpr float kLimbElongation = 2.0f, kLimbFlatness = 1.7f;
+// The config of the k-th of n models whose renderers share one atlas (ImpostorConfig::first_page):
+// `base` with pages [k * max_pages, (k + 1) * max_pages) of n * max_pages.
+inline ImpostorConfig shared_atlas_config(ImpostorConfig base, int k, int n) {
+  base.first_page = k * base.max_pages;
+  base.atlas_pages = n * base.max_pages;
+  return base;
+}
+
 // Index of `w`'s fitted rectangle (ImpostorConfig::fit_quads_to_coverage) in the renderer's list:
 // one slot per smallest-window square of every page (16 bytes each: with 8-pixel windows 256 KB
 // for a 1024-pixel page, whose RGBA8 layer takes 4 MB).

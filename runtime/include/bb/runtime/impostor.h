@@ -190,8 +190,9 @@ struct AtlasWindow {
 
 class AtlasAllocator {
  public:
-  // `page_size` >= the largest window; `max_pages` >= 1.
-  AtlasAllocator(int page_size, int max_pages, const WindowSizes& sizes);
+  // `page_size` >= the largest window; `max_pages` >= 1. The windows' pages are numbered from
+  // `first_page` (an atlas shared with other allocators: ImpostorConfig::first_page).
+  AtlasAllocator(int page_size, int max_pages, const WindowSizes& sizes, int first_page = 0);
 
   // A free window of class `size_class`; nullopt when every page is in use and full.
   std::optional<AtlasWindow> allocate(int size_class);
@@ -200,12 +201,13 @@ class AtlasAllocator {
 
   int page_size() const { return page_size_; }
   int max_pages() const { return static_cast<int>(pages_.size()); }
+  int first_page() const { return first_page_; }
   int pages_used() const;
   int windows_used() const { return windows_used_; }
   // Fraction of the used pages' pixels covered by windows in use.
   float pixel_use() const;
-  // Class of page `p`, or -1 when it is unused.
-  int page_class(int p) const { return pages_[p].size_class; }
+  // Class of page `p` (numbered as the windows are, from first_page()), or -1 when it is unused.
+  int page_class(int p) const { return pages_[static_cast<std::size_t>(p - first_page_)].size_class; }
 
  private:
   struct Page {
@@ -215,6 +217,7 @@ class AtlasAllocator {
     int used = 0;
   };
   int page_size_;
+  int first_page_;
   WindowSizes sizes_;
   std::vector<Page> pages_;
   std::array<std::vector<int>, 8> open_pages_;  // per class: pages with a free slot
