@@ -94,9 +94,9 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["snapshot_scale"] = s.exact_scale ? "exact" : "fill";
   j["snapshot_samples"] = s.snapshot_samples;
   j["impostor_taps"] = s.snapshot_samples > 1 ? 1 : s.impostor_taps;
-  j["quad_fit"] = !s.fit_quads ? "boxes" : s.fit_from_vertices ? "vertices" : "coverage";
+  j["quad_fit"] = !s.fit_quads ? "boxes" : r.fit_from_vertices ? "vertices" : "coverage";
   j["atlas"] = s.shared_atlas ? "shared" : "per-model";
-  if (s.fit_quads) j["coverage_group"] = r.coverage_group;
+  if (s.fit_quads && !r.fit_from_vertices) j["coverage_group"] = r.coverage_group;
   j["short_lived"] = r.short_lived_as_geometry ? "geometry" : "snapshot";
   if (r.short_lived_as_geometry) j["short_lived_geometry"] = r.short_lived_geometry;
   j["flush_every"] = s.flush_every_indices < 0 ? ordered_json("auto") : s.flush_every_indices == 0 ? ordered_json("off") : ordered_json(s.flush_every_indices);
@@ -379,10 +379,10 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   // texels: -0.4 dB at 2).
   if (a.impostor_taps != "auto") s.impostor_taps = std::stoi(a.impostor_taps);
   else s.impostor_taps = a.msaa == 1 ? 1 : !a.impostor_parts && a.texels_per_pixel <= 1.0f ? 2 : 4;
-  if (a.quad_fit != "boxes" && a.quad_fit != "coverage" && a.quad_fit != "vertices")
-    return fail("--quad-fit: expected boxes, coverage or vertices (got \"" + a.quad_fit + "\")");
+  if (a.quad_fit != "auto" && a.quad_fit != "boxes" && a.quad_fit != "coverage" && a.quad_fit != "vertices")
+    return fail("--quad-fit: expected auto, boxes, coverage or vertices (got \"" + a.quad_fit + "\")");
   s.fit_quads = a.quad_fit != "boxes";
-  s.fit_from_vertices = a.quad_fit == "vertices";
+  s.fit_from_vertices = a.quad_fit == "auto" ? -1 : a.quad_fit == "vertices" ? 1 : 0;
   if (a.atlas != "shared" && a.atlas != "per-model")
     return fail("--atlas: expected shared or per-model (got \"" + a.atlas + "\")");
   s.shared_atlas = a.atlas == "shared";
@@ -854,7 +854,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "Taps per pixel of the impostor shader on single-sampled snapshots: 4 (at the 4x sample pattern: a multisampled pixel's coverage), 2 (two on the diagonal: cheaper, nearly as close to a multisampled pixel at one texel per pixel), 1 (one bilinear tap: for single-sampled scenes) or auto (1 where --msaa 1; else 2 for whole impostors at up to one texel per pixel, 4 for part cards and finer windows)")
       ->capture_default_str();
   cmd->add_option("--quad-fit", a->quad_fit,
-                  "Impostor quads: boxes (the projected pose and part boxes), coverage (shrunk on the GPU to the snapshot's covered texels) or vertices (shrunk on the CPU to the snapshot's skinned vertices: the same pictures without the GPU pass)")
+                  "Impostor quads: boxes (the projected pose and part boxes), coverage (shrunk on the GPU to the snapshot's covered texels), vertices (shrunk on the CPU to the snapshot's skinned vertices: the same pictures without the GPU pass) or auto (vertices for part cards without --card-depth on a software rasterizer such as llvmpipe, where they are the faster; else coverage)")
       ->capture_default_str();
   cmd->add_option("--atlas", a->atlas,
                   "With several --model: shared (one atlas for every model's impostors, so that their quads are drawn back to front in one draw) or per-model (an atlas each: a draw per model and per layer of overlaps between models)")

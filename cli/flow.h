@@ -81,7 +81,9 @@ struct FlowSettings {
   int snapshot_samples = 1;                 // ImpostorConfig::snapshot_samples
   int impostor_taps = 4;                    // ImpostorConfig::impostor_taps
   bool fit_quads = true;                    // ImpostorConfig::fit_quads_to_coverage
-  bool fit_from_vertices = false;           // ImpostorConfig::fit_quads_from_vertices (--quad-fit vertices)
+  // ImpostorConfig::fit_quads_from_vertices (--quad-fit vertices); -1: auto (part cards without card
+  // depth on a software rasterizer, where it is the faster; the coverage pass elsewhere)
+  int fit_from_vertices = -1;
   bool shared_atlas = true;                 // one atlas for every model (shared_atlas_config), else one each
   int coverage_group = 0;                   // ImpostorConfig::coverage_group (0: by the rasterizer)
   bool time_stages = false;                 // GPU timestamps between the renderer's stages (gpu_ms_stages)
@@ -135,6 +137,7 @@ struct FlowResult {
   double snapshot_frames = 0;
   bool short_lived_as_geometry = false;     // what FlowSettings::short_lived resolved to
   int coverage_group = 4;                   // what FlowSettings::coverage_group resolved to
+  bool fit_from_vertices = false;           // what FlowSettings::fit_from_vertices resolved to
   // Mean share of the drawn characters that the impostor path drew as geometry instead of a
   // snapshot drawn once (ImpostorConfig::short_lived_as_geometry).
   double short_lived_geometry = 0;
@@ -212,7 +215,7 @@ struct FlowArgs {
   std::string snapshot_scale = "auto";
   int snapshot_samples = 1;
   std::string impostor_taps = "auto";
-  std::string quad_fit = "coverage";
+  std::string quad_fit = "auto";
   std::string atlas = "shared";
   std::string coverage_group = "auto";
   bool gpu_stages = false;

@@ -164,7 +164,15 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   config.snapshot_samples = s.snapshot_samples;
   config.impostor_taps = s.impostor_taps;
   config.fit_quads_to_coverage = s.fit_quads;
-  config.fit_quads_from_vertices = s.fit_from_vertices;
+  // auto: the CPU's fit from the vertices for part cards without card depth on a software
+  // rasterizer (flow test bed, llvmpipe, our four bodies at 8 degrees: 3.70-4.06x against 3.27-3.65x
+  // with the coverage pass; 1,000 humans 3.65-3.75x against 3.32-3.40x; the same pictures). Depth-
+  // corrected cards keep the pass for their wide offsets, and were slower with both (2.32x against
+  // 2.44-2.52x); whole impostors gain nothing (thirty-eighth session); on the H200 the fit's planning
+  // made part cards slower (0.22x against 0.27-0.28x).
+  config.fit_quads_from_vertices =
+      s.fit_quads && (s.fit_from_vertices > 0 || (s.fit_from_vertices < 0 && s.part_cards && !s.parallax_cards && software_rasterizer()));
+  out.fit_from_vertices = config.fit_quads_from_vertices;
   config.coverage_group = s.coverage_group;
   config.planner_threads = s.planner_threads;
   DrawOptions draw_options;

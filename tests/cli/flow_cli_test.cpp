@@ -424,6 +424,32 @@ TEST(FlowCli, QuadsFromTheVerticesGiveThePassesPictures) {
   EXPECT_LT(tv, 1.2 * tp);
 }
 
+// --quad-fit auto (the default): the coverage pass for whole impostors and depth-corrected cards; the
+// fit from the vertices for part cards on a software rasterizer (where it is the faster), the pass
+// on a GPU.
+TEST(FlowCli, QuadFitAutoTakesTheVerticesForPartCardsInSoftware) {
+  std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
+  fs::path d = fs::temp_directory_path() / "bb_flow_cli_test_quad_fit_auto";
+  const std::string args = "flow --model " + model + " --size 320x256 --frames 3 --json -o " + d.string();
+  Out whole = run(args);
+  if (whole.text.find("EGL") != std::string::npos && whole.status != 0) GTEST_SKIP() << "no headless OpenGL: " << whole.text;
+  ASSERT_EQ(whole.status, 0) << whole.text;
+  Out cards = run(args + " --impostor-parts");
+  ASSERT_EQ(cards.status, 0) << cards.text;
+  Out deep = run(args + " --impostor-parts --card-depth on");
+  ASSERT_EQ(deep.status, 0) << deep.text;
+  auto jw = nlohmann::json::parse(last_json_line(whole.text));
+  auto jc = nlohmann::json::parse(last_json_line(cards.text));
+  auto jd = nlohmann::json::parse(last_json_line(deep.text));
+  const bool software = jw["device"].get<std::string>().find("llvmpipe") != std::string::npos ||
+                        jw["device"].get<std::string>().find("software") != std::string::npos;
+  EXPECT_EQ(jw["quad_fit"], "coverage");
+  EXPECT_EQ(jc["quad_fit"], software ? "vertices" : "coverage");
+  EXPECT_EQ(jd["quad_fit"], "coverage");
+  EXPECT_EQ(jc.contains("coverage_group"), !software);
+}
+
 // Two models' crowds with one atlas (--atlas shared, the default: every quad in one back-to-front
 // draw) and with an atlas each (per-model: layers of a draw per model): the same frames.
 TEST(FlowCli, OneAtlasForSeveralModelsGivesTheSameFrames) {
