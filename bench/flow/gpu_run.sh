@@ -431,6 +431,25 @@ set_s39d() {
   flow d_shared_sweep_view $C4 --frames 60 --sweep view
   flow d_shared_worst_h1000 $C4 --frames 30 --humans 1000 --posture 0 --view 0
 }
+# The present code (one atlas for the four bodies) against the targets: set_s39's runs again, and
+# the crowd sizes three times.
+set_s39e() {
+  local q="--impostor-parts --texels-per-pixel 2 --impostor-edges blend --card-depth pass"
+  flow e39_main $C4 --frames 120
+  flow e39_worst $C4 --frames 60 --posture 0 --view 0
+  flow e39_sweep_view $C4 --frames 60 --sweep view
+  for i in 1 2 3; do
+    flow e39_scaling_$i $C4 --frames 2 --gpu-stages --scaling --scaling-humans 20,100,1000,2000,5000,10000 --scaling-frames 8
+  done
+  flow e39_sweep_view_h1000 $C4 --frames 40 --humans 1000 --sweep view
+  flow e39_sweep_posture_h1000 $C4 --frames 40 --humans 1000 --sweep posture
+  flow e39_parts_8 $C4 --frames 60 --view 8 --posture off --impostor-parts
+  flow e39_best_8 $C4 --frames 60 --view 8 --posture off $q
+  flow e39_worst_h1000 $C4 --frames 30 --humans 1000 --posture 0 --view 0
+  flow e39_worst_h5000 $C4 --frames 20 --humans 5000 --posture 0 --view 0
+  flow e39_cesium --model $M/CesiumMan.glb --frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 16
+  flow e39_fox --model $M/Fox.glb --frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 16
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"
