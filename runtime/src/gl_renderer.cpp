@@ -964,6 +964,22 @@ struct Renderer::Impl {
     glDisable(GL_SAMPLE_ALPHA_TO_ONE);
   }
 
+  // draw_many's quads: the depth test as draw() leaves it, no culling, the whole scene's viewport.
+  static void begin_many_impostors(const SceneCamera& camera) {
+    glEnable(GL_DEPTH_TEST);
+    glDepthMask(GL_TRUE);
+    glDepthFunc(GL_LESS);
+    glDisable(GL_CULL_FACE);
+    glViewport(0, 0, camera.width, camera.height);
+  }
+  // The end of draw() and draw_many(): no VAO or program bound, and no sampler object (a material's
+  // must not outlive the draw).
+  static void end_draw() {
+    glBindVertexArray(0);
+    glUseProgram(0);
+    glBindSampler(1, 0);
+  }
+
   // Draws uploaded quads [first, first + count) (bound by bind_impostors).
   void draw_impostor_range(const ImpostorPass& p, GLuint first, GLsizei count) {
     if (count <= 0) return;
@@ -1678,9 +1694,7 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
     Impl::end_impostor_state(single_sampled);
   }
   d.stamp(ts, 4);
-  glBindVertexArray(0);
-  glUseProgram(0);
-  glBindSampler(1, 0);  // the material's sampler object must not outlive the draw
+  Impl::end_draw();
 }
 
 void Renderer::draw_many(std::span<Renderer* const> renderers, std::span<const FramePlan* const> plans,
@@ -1747,20 +1761,14 @@ void Renderer::draw_many(std::span<Renderer* const> renderers, std::span<const F
       const std::uint32_t g = d0.many_order[j];
       d0.billboard_scratch[j] = plans[d0.many_model[g]]->billboards[d0.many_index[g]];
     }
-    glEnable(GL_DEPTH_TEST);
-    glDepthMask(GL_TRUE);
-    glDepthFunc(GL_LESS);
-    glDisable(GL_CULL_FACE);
-    glViewport(0, 0, camera.width, camera.height);
+    Impl::begin_many_impostors(camera);
     const Impl::ImpostorPass p = Impl::impostor_pass(options.edges, plans[first]->stats.part_cards > 0);
     d0.upload_impostors(p, *plans[first], d0.billboard_scratch.data(), d0.billboard_scratch.size(), viewproj);
     d0.bind_impostors(p);
     const bool single_sampled = Impl::begin_impostor_state(p.mode);
     d0.draw_impostor_range(p, 0, static_cast<GLsizei>(d0.billboard_scratch.size()));
     Impl::end_impostor_state(single_sampled);
-    glBindVertexArray(0);
-    glUseProgram(0);
-    glBindSampler(1, 0);
+    Impl::end_draw();
     return;
   }
   // Else every model's quads back to front (ties in model, then plan order), on screen, in layers.
@@ -1814,11 +1822,7 @@ void Renderer::draw_many(std::span<Renderer* const> renderers, std::span<const F
     Impl& d = *renderers[k]->impl_;
     d.billboard_scratch[d.layer_next[static_cast<std::size_t>(d0.many_layer[g])]++] = plans[k]->billboards[d0.many_index[g]];
   }
-  glEnable(GL_DEPTH_TEST);
-  glDepthMask(GL_TRUE);
-  glDepthFunc(GL_LESS);
-  glDisable(GL_CULL_FACE);
-  glViewport(0, 0, camera.width, camera.height);
+  Impl::begin_many_impostors(camera);
   std::vector<Impl::ImpostorPass>& pass = d0.many_pass;  // one framebuffer: one mode; cards per plan
   pass.assign(n, Impl::impostor_pass(options.edges, false));
   for (std::size_t k = 0; k < n; ++k) {
@@ -1854,9 +1858,7 @@ void Renderer::draw_many(std::span<Renderer* const> renderers, std::span<const F
       (shared ? d0 : d).draw_impostor_range(pass[k], range[0], static_cast<GLsizei>(range[1]));
     }
   Impl::end_impostor_state(single_sampled);
-  glBindVertexArray(0);
-  glUseProgram(0);
-  glBindSampler(1, 0);
+  Impl::end_draw();
 }
 
 StageTimes Renderer::stage_times() const {

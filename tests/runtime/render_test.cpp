@@ -288,6 +288,19 @@ SceneCamera ring_camera() {
   return cam;
 }
 
+// The two-model tests' scene: walker i of a file receding from the camera, each overlapping the next,
+// and the camera looking down the file.
+Character file_walker(int i) { return Character{glm::vec3(0.3f * i - 1.0f, 0, -1.2f * i), 0.3f, 1.0f, 0, 0.13f * i, 1.0f}; }
+SceneCamera file_camera() {
+  SceneCamera cam;
+  cam.width = 640;
+  cam.height = 512;
+  cam.eye = {0.5f, 1.6f, 4.0f};
+  cam.target = {0.3f, 0.9f, -4.0f};
+  cam.fov_y = glm::radians(45.0f);
+  return cam;
+}
+
 // Two models' crowds in one frame (Renderer::draw_many): a file of walkers receding from the
 // camera, each overlapping the next, alternately of two models (the same file loaded twice, so
 // that one renderer drawing them all is the reference). Blended quads must then be drawn back to
@@ -303,9 +316,8 @@ TEST(CrowdRender, SeveralModelsBlendBackToFrontAcrossModels) {
   ASSERT_TRUE(m0.ok() && m1.ok());
   Crowd all(*m0), even(*m0), odd(*m1);
   for (int i = 0; i < 8; ++i) {
-    const Character c{glm::vec3(0.3f * i - 1.0f, 0, -1.2f * i), 0.3f, 1.0f, 0, 0.13f * i, 1.0f};
-    all.add(c);
-    (i % 2 ? odd : even).add(c);
+    all.add(file_walker(i));
+    (i % 2 ? odd : even).add(file_walker(i));
   }
   const ImpostorConfig cfg = refresh_always();
   FramePlanner p_all(*m0, cfg), p_even(*m0, cfg), p_odd(*m1, cfg);
@@ -313,12 +325,7 @@ TEST(CrowdRender, SeveralModelsBlendBackToFrontAcrossModels) {
   ASSERT_TRUE(r_all.ok() && r_even.ok() && r_odd.ok());
   auto target = OffscreenTarget::create(640, 512);
   ASSERT_TRUE(target.ok());
-  SceneCamera cam;
-  cam.width = 640;
-  cam.height = 512;
-  cam.eye = {0.5f, 1.6f, 4.0f};
-  cam.target = {0.3f, 0.9f, -4.0f};
-  cam.fov_y = glm::radians(45.0f);
+  const SceneCamera cam = file_camera();
   for (int f = 0; f < 2; ++f) {
     const float t = 0.2f * f;
     (*target)->bind(true);
@@ -361,7 +368,7 @@ TEST(CrowdRender, ModelsSharingAnAtlasDrawTheirQuadsInOneDraw) {
   auto m1 = load_model(path);
   ASSERT_TRUE(m0.ok() && m1.ok());
   Crowd even(*m0), odd(*m1);
-  for (int i = 0; i < 8; ++i) (i % 2 ? odd : even).add(Character{glm::vec3(0.3f * i - 1.0f, 0, -1.2f * i), 0.3f, 1.0f, 0, 0.13f * i, 1.0f});
+  for (int i = 0; i < 8; ++i) (i % 2 ? odd : even).add(file_walker(i));
   ImpostorConfig cfg = refresh_always();
   cfg.max_pages = 4;
   const ImpostorConfig c0 = shared_atlas_config(cfg, 0, 2), c1 = shared_atlas_config(cfg, 1, 2);
@@ -381,12 +388,7 @@ TEST(CrowdRender, ModelsSharingAnAtlasDrawTheirQuadsInOneDraw) {
   EXPECT_FALSE(Renderer::create(*m1, outside).ok());
   auto target = OffscreenTarget::create(640, 512);
   ASSERT_TRUE(target.ok());
-  SceneCamera cam;
-  cam.width = 640;
-  cam.height = 512;
-  cam.eye = {0.5f, 1.6f, 4.0f};
-  cam.target = {0.3f, 0.9f, -4.0f};
-  cam.fov_y = glm::radians(45.0f);
+  const SceneCamera cam = file_camera();
   for (int f = 0; f < 2; ++f) {
     const float t = 0.2f * f;
     const FramePlan& pe = p_even.plan(even, cam, t, RenderMode::kImpostor);
