@@ -450,6 +450,18 @@ set_s39e() {
   flow e39_cesium --model $M/CesiumMan.glb --frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 16
   flow e39_fox --model $M/Fox.glb --frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 16
 }
+# Part cards in crowds with one atlas (16 cards a human in one draw instead of layers of draws per
+# model): 1,000 humans shared against per-model, crowd sizes, the best quality at 1,000.
+set_s39f() {
+  for i in 1 2; do
+    for a in shared per-model; do
+      flow f39_parts_h1000_${a}_$i $C4 --frames 30 --humans 1000 --impostor-parts --atlas $a
+    done
+  done
+  flow f39_parts_scaling $C4 --frames 2 --impostor-parts --scaling --scaling-humans 1000,5000,10000 --scaling-frames 8
+  flow f39_parts_view_h1000 $C4 --frames 30 --humans 1000 --impostor-parts --sweep view
+  flow f39_best_h1000 $C4 --frames 30 --humans 1000 --view 8 --posture off --impostor-parts --texels-per-pixel 2 --impostor-edges blend --card-depth pass
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"
