@@ -95,7 +95,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["snapshot_samples"] = s.snapshot_samples;
   j["impostor_taps"] = s.snapshot_samples > 1 ? 1 : s.impostor_taps;
   j["quad_fit"] = !s.fit_quads ? "boxes" : r.fit_from_vertices ? "vertices" : "coverage";
-  j["atlas"] = s.shared_atlas ? "shared" : "per-model";
+  j["atlas"] = r.shared_atlas ? "shared" : "per-model";
   if (s.fit_quads && !r.fit_from_vertices) j["coverage_group"] = r.coverage_group;
   j["short_lived"] = r.short_lived_as_geometry ? "geometry" : "snapshot";
   if (r.short_lived_as_geometry) j["short_lived_geometry"] = r.short_lived_geometry;
@@ -857,7 +857,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "Impostor quads: boxes (the projected pose and part boxes), coverage (shrunk on the GPU to the snapshot's covered texels), vertices (shrunk on the CPU to the snapshot's skinned vertices: the same pictures without the GPU pass) or auto (vertices for part cards without --card-depth on a software rasterizer such as llvmpipe, where they are the faster; else coverage)")
       ->capture_default_str();
   cmd->add_option("--atlas", a->atlas,
-                  "With several --model: shared (one atlas for every model's impostors, so that their quads are drawn back to front in one draw) or per-model (an atlas each: a draw per model and per layer of overlaps between models)")
+                  "With several --model: shared (one atlas for every model's impostors, so that their quads are drawn back to front in one draw; an atlas each where their pages would pass 2,048) or per-model (an atlas each: a draw per model and per layer of overlaps between models)")
       ->capture_default_str();
   cmd->add_option("--coverage-group", a->coverage_group,
                   "With --quad-fit coverage: invocations per side of the coverage pass's work groups, one group per new snapshot: 4, 8, 16 or auto (4 on a software rasterizer such as llvmpipe, which runs a group's invocations as one thread's SIMD lanes; 16 on a GPU, where a group waits for its invocations' walk over the window); the same rectangles whatever the size")

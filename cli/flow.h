@@ -84,7 +84,8 @@ struct FlowSettings {
   // ImpostorConfig::fit_quads_from_vertices (--quad-fit vertices); -1: auto (part cards without card
   // depth on a software rasterizer, where it is the faster; the coverage pass elsewhere)
   int fit_from_vertices = -1;
-  bool shared_atlas = true;                 // one atlas for every model (shared_atlas_config), else one each
+  bool shared_atlas = true;                 // one atlas for every model (shared_atlas_config) where their pages
+                                            // fit one array texture (2,048 layers), else one each
   int coverage_group = 0;                   // ImpostorConfig::coverage_group (0: by the rasterizer)
   bool time_stages = false;                 // GPU timestamps between the renderer's stages (gpu_ms_stages)
   int flush_every_indices = -1;             // DrawOptions::flush_every_indices (-1: auto, 0: never)
@@ -138,6 +139,7 @@ struct FlowResult {
   bool short_lived_as_geometry = false;     // what FlowSettings::short_lived resolved to
   int coverage_group = 4;                   // what FlowSettings::coverage_group resolved to
   bool fit_from_vertices = false;           // what FlowSettings::fit_from_vertices resolved to
+  bool shared_atlas = false;                // the models share one atlas (FlowSettings::shared_atlas, if it fits)
   // Mean share of the drawn characters that the impostor path drew as geometry instead of a
   // snapshot drawn once (ImpostorConfig::short_lived_as_geometry).
   double short_lived_geometry = 0;

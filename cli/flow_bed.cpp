@@ -213,20 +213,24 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   // --atlas shared (the default) the models' pages are parts of one atlas, one after another.
   auto humans_of = [&](int m) { return (s.humans + nm - 1 - m) / nm; };
   auto pages_of = [&](int m) { return std::clamp(humans_of(m) / 8 + 4, 8, 64); };
+  // An array texture has at least 2,048 layers wherever OpenGL 4.5 runs: models whose pages together
+  // need more take an atlas each.
   int shared_pages = 0;
   for (int m = 0; m < nm; ++m) shared_pages += pages_of(m);
+  const bool share = s.shared_atlas && shared_pages <= 2048;
+  out.shared_atlas = share;
   for (int m = 0, first_page = 0; m < nm; ++m) {
     const int humans_m = humans_of(m);
     config.max_pages = pages_of(m);
-    config.first_page = s.shared_atlas ? first_page : 0;
-    config.atlas_pages = s.shared_atlas ? shared_pages : 0;
+    config.first_page = share ? first_page : 0;
+    config.atlas_pages = share ? shared_pages : 0;
     first_page += config.max_pages;
     // The refresh budget is the crowd's: each model's planner gets its share (at least one).
     config.cache.refresh_budget =
         s.refresh_budget > 0 ? std::max(1, s.refresh_budget / nm + (m < s.refresh_budget % nm ? 1 : 0)) : 0;
     config.cache.ahead_fraction = s.refresh_ahead;
     config.cache.ahead_count = s.ahead_count;
-    auto r = Renderer::create(*models[m], config, s.shared_atlas && m > 0 ? renderers.front().get() : nullptr);
+    auto r = Renderer::create(*models[m], config, share && m > 0 ? renderers.front().get() : nullptr);
     if (!r) return r.error();
     renderers.push_back(std::move(*r));
     renderer_ptrs.push_back(renderers.back().get());
