@@ -854,7 +854,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "Taps per pixel of the impostor shader on single-sampled snapshots: 4 (at the 4x sample pattern: a multisampled pixel's coverage), 2 (two on the diagonal: cheaper, nearly as close to a multisampled pixel at one texel per pixel), 1 (one bilinear tap: for single-sampled scenes) or auto (1 where --msaa 1; else 2 for whole impostors at up to one texel per pixel, 4 for part cards and finer windows)")
       ->capture_default_str();
   cmd->add_option("--quad-fit", a->quad_fit,
-                  "Impostor quads: boxes (the projected pose and part boxes), coverage (shrunk on the GPU to the snapshot's covered texels), vertices (shrunk on the CPU to the snapshot's skinned vertices: the same pictures without the GPU pass) or auto (vertices for part cards without --card-depth on a software rasterizer such as llvmpipe, where they are the faster; else coverage)")
+                  "Impostor quads: boxes (the projected pose and part boxes), coverage (shrunk on the GPU to the snapshot's covered texels), vertices (shrunk on the CPU to the snapshot's skinned vertices: the same pictures without the GPU pass) or auto (vertices on a software rasterizer such as llvmpipe, where the pass's barrier finishes the frame's drawing so far, but for --card-depth, which needs the pass; coverage on a GPU)")
       ->capture_default_str();
   cmd->add_option("--atlas", a->atlas,
                   "With several --model: shared (one atlas for every model's impostors, so that their quads are drawn back to front in one draw; an atlas each where their pages would pass 2,048) or per-model (an atlas each: a draw per model and per layer of overlaps between models)")

@@ -81,8 +81,8 @@ struct FlowSettings {
   int snapshot_samples = 1;                 // ImpostorConfig::snapshot_samples
   int impostor_taps = 4;                    // ImpostorConfig::impostor_taps
   bool fit_quads = true;                    // ImpostorConfig::fit_quads_to_coverage
-  // ImpostorConfig::fit_quads_from_vertices (--quad-fit vertices); -1: auto (part cards without card
-  // depth on a software rasterizer, where it is the faster; the coverage pass elsewhere)
+  // ImpostorConfig::fit_quads_from_vertices (--quad-fit vertices); -1: auto (on a software rasterizer
+  // but for depth-corrected cards, where it is the faster; the coverage pass on a GPU)
   int fit_from_vertices = -1;
   bool shared_atlas = true;                 // one atlas for every model (shared_atlas_config) where their pages
                                             // fit one array texture (2,048 layers), else one each

@@ -164,14 +164,16 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   config.snapshot_samples = s.snapshot_samples;
   config.impostor_taps = s.impostor_taps;
   config.fit_quads_to_coverage = s.fit_quads;
-  // auto: the CPU's fit from the vertices for part cards without card depth on a software
-  // rasterizer (flow test bed, llvmpipe, our four bodies at 8 degrees: 3.70-4.06x against 3.27-3.65x
-  // with the coverage pass; 1,000 humans 3.65-3.75x against 3.32-3.40x; the same pictures). Depth-
-  // corrected cards keep the pass for their wide offsets, and were slower with both (2.32x against
-  // 2.44-2.52x); whole impostors gain nothing (thirty-eighth session); on the H200 the fit's planning
-  // made part cards slower (0.22x against 0.27-0.28x).
+  // auto: the CPU's fit from the vertices on a software rasterizer, where the coverage pass's barrier
+  // finishes the frame's drawing so far (flow test bed, llvmpipe: part cards at 8 degrees 3.70-4.06x
+  // against 3.27-3.65x with the pass, at 1,000 humans 3.65-3.75x against 3.32-3.40x; RiggedSimple
+  // orbiting at 17 degrees 4.68-4.93x against 4.52-4.62x; our four bodies' main run, worst case and
+  // 1,000 humans the same or faster; the same pictures), but not for depth-corrected cards, which keep
+  // the pass for their wide offsets and were slower with both (2.32x against 2.44-2.52x). On the H200
+  // the fit's planning made the frames slower (20 humans 0.62-0.69x against 0.76x, part cards 0.22x
+  // against 0.27-0.28x), so a GPU keeps the pass.
   config.fit_quads_from_vertices =
-      s.fit_quads && (s.fit_from_vertices > 0 || (s.fit_from_vertices < 0 && s.part_cards && !s.parallax_cards && software_rasterizer()));
+      s.fit_quads && (s.fit_from_vertices > 0 || (s.fit_from_vertices < 0 && !s.parallax_cards && software_rasterizer()));
   out.fit_from_vertices = config.fit_quads_from_vertices;
   config.coverage_group = s.coverage_group;
   config.planner_threads = s.planner_threads;

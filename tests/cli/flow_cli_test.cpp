@@ -221,7 +221,7 @@ TEST(FlowCli, ExactSnapshotsCopyTheGeometryFrame) {
   std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
   if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
   fs::path d = fs::temp_directory_path() / "bb_flow_cli_test_exact";
-  const std::string args = "flow --model " + model + " --frames 4 --size 640x512 --posture 0 --view 0 --json -o " + d.string();
+  const std::string args = "flow --model " + model + " --frames 4 --size 640x512 --posture 0 --view 0 --quad-fit coverage --json -o " + d.string();
   Out free = run(args);
   if (free.text.find("EGL") != std::string::npos && free.status != 0) GTEST_SKIP() << "no headless OpenGL: " << free.text;
   ASSERT_EQ(free.status, 0) << free.text;
@@ -231,10 +231,11 @@ TEST(FlowCli, ExactSnapshotsCopyTheGeometryFrame) {
   auto je = nlohmann::json::parse(last_json_line(exact.text));
   EXPECT_EQ(jf["snapshot_grid"], "free");
   EXPECT_EQ(jf["snapshot_scale"], "exact");  // --snapshot-scale auto, whole impostors
-  // The quads as drawn: every snapshot here lives one frame, so after the first frame none is
+  // The quads as drawn (the coverage pass; on a software rasterizer --quad-fit auto fits them from the
+  // vertices in the planner): every snapshot here lives one frame, so after the first frame none is
   // fitted to the coverage (the pass would not pay back) and they are the planner's. Snapshots
   // that last (8 degrees, posture off) are fitted, and smaller.
-  Out lasting = run("flow --model " + model + " --frames 4 --size 640x512 --posture off --view 8 --json -o " + d.string());
+  Out lasting = run("flow --model " + model + " --frames 4 --size 640x512 --posture off --view 8 --quad-fit coverage --json -o " + d.string());
   ASSERT_EQ(lasting.status, 0) << lasting.text;
   auto jl = nlohmann::json::parse(last_json_line(lasting.text));
   for (const auto* j : {&jf, &jl})
@@ -424,10 +425,9 @@ TEST(FlowCli, QuadsFromTheVerticesGiveThePassesPictures) {
   EXPECT_LT(tv, 1.2 * tp);
 }
 
-// --quad-fit auto (the default): the coverage pass for whole impostors and depth-corrected cards; the
-// fit from the vertices for part cards on a software rasterizer (where it is the faster), the pass
-// on a GPU.
-TEST(FlowCli, QuadFitAutoTakesTheVerticesForPartCardsInSoftware) {
+// --quad-fit auto (the default): the fit from the vertices on a software rasterizer (where it is the
+// faster), but the coverage pass for depth-corrected cards, and on a GPU.
+TEST(FlowCli, QuadFitAutoTakesTheVerticesInSoftware) {
   std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
   if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
   fs::path d = fs::temp_directory_path() / "bb_flow_cli_test_quad_fit_auto";
@@ -444,7 +444,7 @@ TEST(FlowCli, QuadFitAutoTakesTheVerticesForPartCardsInSoftware) {
   auto jd = nlohmann::json::parse(last_json_line(deep.text));
   const bool software = jw["device"].get<std::string>().find("llvmpipe") != std::string::npos ||
                         jw["device"].get<std::string>().find("software") != std::string::npos;
-  EXPECT_EQ(jw["quad_fit"], "coverage");
+  EXPECT_EQ(jw["quad_fit"], software ? "vertices" : "coverage");
   EXPECT_EQ(jc["quad_fit"], software ? "vertices" : "coverage");
   EXPECT_EQ(jd["quad_fit"], "coverage");
   EXPECT_EQ(jc.contains("coverage_group"), !software);
