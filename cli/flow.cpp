@@ -857,7 +857,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "Impostor quads: boxes (the projected pose and part boxes), coverage (shrunk on the GPU to the snapshot's covered texels), vertices (shrunk on the CPU to the snapshot's skinned vertices: the same pictures without the GPU pass) or auto (vertices on a software rasterizer such as llvmpipe, where the pass's barrier finishes the frame's drawing so far, but for --card-depth, which needs the pass; coverage on a GPU)")
       ->capture_default_str();
   cmd->add_option("--atlas", a->atlas,
-                  "With several --model: shared (one atlas for every model's impostors, so that their quads are drawn back to front in one draw; an atlas each where their pages would pass 2,048) or per-model (an atlas each: a draw per model and per layer of overlaps between models)")
+                  "With several --model: shared (one atlas for every model's impostors, so that their quads are drawn back to front in one draw; an atlas each where the GL makes no texture that big, as llvmpipe past 2 GB) or per-model (an atlas each: a draw per model and per layer of overlaps between models)")
       ->capture_default_str();
   cmd->add_option("--coverage-group", a->coverage_group,
                   "With --quad-fit coverage: invocations per side of the coverage pass's work groups, one group per new snapshot: 4, 8, 16 or auto (4 on a software rasterizer such as llvmpipe, which runs a group's invocations as one thread's SIMD lanes; 16 on a GPU, where a group waits for its invocations' walk over the window); the same rectangles whatever the size")

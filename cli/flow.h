@@ -84,8 +84,8 @@ struct FlowSettings {
   // ImpostorConfig::fit_quads_from_vertices (--quad-fit vertices); -1: auto (on a software rasterizer
   // but for depth-corrected cards, where it is the faster; the coverage pass on a GPU)
   int fit_from_vertices = -1;
-  bool shared_atlas = true;                 // one atlas for every model (shared_atlas_config) where their pages
-                                            // fit one array texture (2,048 layers), else one each
+  bool shared_atlas = true;                 // one atlas for every model (shared_atlas_config) where the GL
+                                            // makes one texture that big, else one each
   int coverage_group = 0;                   // ImpostorConfig::coverage_group (0: by the rasterizer)
   bool time_stages = false;                 // GPU timestamps between the renderer's stages (gpu_ms_stages)
   int flush_every_indices = -1;             // DrawOptions::flush_every_indices (-1: auto, 0: never)

@@ -215,31 +215,48 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   // --atlas shared (the default) the models' pages are parts of one atlas, one after another.
   auto humans_of = [&](int m) { return (s.humans + nm - 1 - m) / nm; };
   auto pages_of = [&](int m) { return std::clamp(humans_of(m) / 8 + 4, 8, 64); };
-  // An array texture has at least 2,048 layers wherever OpenGL 4.5 runs: models whose pages together
-  // need more take an atlas each.
-  int shared_pages = 0;
-  for (int m = 0; m < nm; ++m) shared_pages += pages_of(m);
-  const bool share = s.shared_atlas && shared_pages <= 2048;
-  out.shared_atlas = share;
-  for (int m = 0, first_page = 0; m < nm; ++m) {
-    const int humans_m = humans_of(m);
-    config.max_pages = pages_of(m);
-    config.first_page = share ? first_page : 0;
-    config.atlas_pages = share ? shared_pages : 0;
-    first_page += config.max_pages;
-    // The refresh budget is the crowd's: each model's planner gets its share (at least one).
-    config.cache.refresh_budget =
-        s.refresh_budget > 0 ? std::max(1, s.refresh_budget / nm + (m < s.refresh_budget % nm ? 1 : 0)) : 0;
-    config.cache.ahead_fraction = s.refresh_ahead;
-    config.cache.ahead_count = s.ahead_count;
-    auto r = Renderer::create(*models[m], config, share && m > 0 ? renderers.front().get() : nullptr);
-    if (!r) return r.error();
+  // The models' configs, with one atlas for all or an atlas each.
+  auto configs_for = [&](bool share) {
+    int shared_pages = 0;
+    for (int m = 0; m < nm; ++m) shared_pages += pages_of(m);
+    std::vector<ImpostorConfig> cs;
+    for (int m = 0, first_page = 0; m < nm; ++m) {
+      ImpostorConfig c = config;
+      c.max_pages = pages_of(m);
+      c.first_page = share ? first_page : 0;
+      c.atlas_pages = share ? shared_pages : 0;
+      first_page += c.max_pages;
+      // The refresh budget is the crowd's: each model's planner gets its share (at least one).
+      c.cache.refresh_budget =
+          s.refresh_budget > 0 ? std::max(1, s.refresh_budget / nm + (m < s.refresh_budget % nm ? 1 : 0)) : 0;
+      c.cache.ahead_fraction = s.refresh_ahead;
+      c.cache.ahead_count = s.ahead_count;
+      cs.push_back(c);
+    }
+    return cs;
+  };
+  // Where one atlas for all is more than the GL makes in one texture (llvmpipe: 2 GB, 512 pages of
+  // 1024: eight models at 10,000 humans share one, nine do not), the models take an atlas each.
+  bool share = s.shared_atlas && nm > 1;
+  std::vector<ImpostorConfig> configs = configs_for(share);
+  for (int attempt = 0; renderers.size() < static_cast<std::size_t>(nm); ++attempt) {
+    const int m = static_cast<int>(renderers.size());
+    auto r = Renderer::create(*models[m], configs[m], share && m > 0 ? renderers.front().get() : nullptr);
+    if (!r) {
+      if (!share || m > 0 || attempt > 0) return r.error();
+      share = false;  // the shared atlas's texture was refused: an atlas each
+      configs = configs_for(false);
+      continue;
+    }
     renderers.push_back(std::move(*r));
     renderer_ptrs.push_back(renderers.back().get());
     out.coverage_group = renderers.back()->coverage_group();
-    planners.push_back(std::make_unique<FramePlanner>(*models[m], config));
+  }
+  out.shared_atlas = share || nm == 1;
+  for (int m = 0; m < nm; ++m) {
+    planners.push_back(std::make_unique<FramePlanner>(*models[m], configs[m]));
     crowds.emplace_back(*models[m]);
-    crowds.back().reserve(static_cast<std::size_t>(humans_m));
+    crowds.back().reserve(static_cast<std::size_t>(humans_of(m)));
   }
   std::vector<FramePlanner*> planner_ptrs;
   std::vector<const Crowd*> crowd_ptrs;

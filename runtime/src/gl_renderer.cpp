@@ -1473,6 +1473,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
       glTextureParameteri(t, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
       return t;
     };
+    while (glGetError() != GL_NO_ERROR) {
+    }
     a.atlas = page_array(GL_RGBA8, GL_LINEAR);
     glCreateFramebuffers(1, &a.atlas_fbo);
     if (a.layered) {
@@ -1503,6 +1505,9 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
       glNamedFramebufferTextureLayer(a.atlas_fbo, GL_COLOR_ATTACHMENT0, a.atlas, 0, 0);
       glNamedFramebufferRenderbuffer(a.atlas_fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, a.atlas_depth);
     }
+    if (glGetError() == GL_OUT_OF_MEMORY)  // llvmpipe makes no texture over 2 GB: 512 pages of 1024
+      return Error{"", "atlas", std::to_string(atlas_pages) + " pages of " + std::to_string(config.page_size) + " x " +
+                                    std::to_string(config.page_size) + " texels are more than the GL makes in one texture"};
     if (glCheckNamedFramebufferStatus(a.atlas_fbo, GL_DRAW_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
       return Error{"", "atlas", "the atlas framebuffer is incomplete"};
     // Quads fitted to the coverage: a rectangle per smallest-window slot of every page; until a

@@ -429,6 +429,30 @@ TEST(CrowdRender, ModelsSharingAnAtlasDrawTheirQuadsInOneDraw) {
   EXPECT_GT(covered, 4000);
 }
 
+// An atlas too big for one texture: llvmpipe makes none over 2 GB (512 pages of 1024 x 1024 RGBA8),
+// and create() says so, naming the atlas and its pages, instead of drawing into an incomplete
+// framebuffer (flow then gives each model an atlas of its own). A GPU may make it.
+TEST(CrowdRender, AnAtlasTooBigForOneTextureIsRefusedWithItsSize) {
+  REQUIRE_GL();
+  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
+  auto m = load_model(path);
+  ASSERT_TRUE(m.ok());
+  ImpostorConfig cfg;
+  cfg.atlas_pages = 600;  // 2.3 GB of colour
+  auto r = Renderer::create(*m, cfg);
+  if (!software_rasterizer()) {
+    if (r.ok()) GTEST_SUCCEED() << "this GL makes a texture of 600 pages";
+    return;
+  }
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().where, "atlas");
+  EXPECT_NE(r.error().reason.find("600 pages of 1024 x 1024"), std::string::npos) << r.error().reason;
+  cfg.atlas_pages = 64;  // and the next renderer is made as if nothing had happened
+  cfg.max_pages = 32;
+  EXPECT_TRUE(Renderer::create(*m, cfg).ok());
+}
+
 // Twenty walkers on a circle seen from above the ring: the crowd path (planner + renderer) with
 // every character refreshed each frame, compared with geometry frame by frame.
 TEST(CrowdRender, ImpostorFramesMatchGeometryFrames) {
