@@ -429,9 +429,9 @@ TEST(CrowdRender, ModelsSharingAnAtlasDrawTheirQuadsInOneDraw) {
   EXPECT_GT(covered, 4000);
 }
 
-// An atlas too big for one texture: llvmpipe makes none over 2 GB (512 pages of 1024 x 1024 RGBA8),
-// and create() says so, naming the atlas and its pages, instead of drawing into an incomplete
-// framebuffer (flow then gives each model an atlas of its own). A GPU may make it.
+// An atlas too big for one texture: llvmpipe (Mesa 22.3) makes none over 2 GB (512 pages of 1024 x
+// 1024 RGBA8), and create() says so, naming the atlas and its pages, instead of drawing into an
+// incomplete framebuffer (flow then gives each model an atlas of its own). A GPU may make it.
 TEST(CrowdRender, AnAtlasTooBigForOneTextureIsRefusedWithItsSize) {
   REQUIRE_GL();
   std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
@@ -441,11 +441,8 @@ TEST(CrowdRender, AnAtlasTooBigForOneTextureIsRefusedWithItsSize) {
   ImpostorConfig cfg;
   cfg.atlas_pages = 600;  // 2.3 GB of colour
   auto r = Renderer::create(*m, cfg);
-  if (!software_rasterizer()) {
-    if (r.ok()) GTEST_SUCCEED() << "this GL makes a texture of 600 pages";
-    return;
-  }
-  ASSERT_FALSE(r.ok());
+  // A GPU, or a llvmpipe with a higher limit than Mesa 22.3's 2 GB, makes it: nothing to refuse there.
+  if (r.ok()) GTEST_SKIP() << "this GL makes a texture of 600 pages of 1024 x 1024 (" << (software_rasterizer() ? "software" : "GPU") << ")";
   EXPECT_EQ(r.error().where, "atlas");
   EXPECT_NE(r.error().reason.find("600 pages of 1024 x 1024"), std::string::npos) << r.error().reason;
   cfg.atlas_pages = 64;  // and the next renderer is made as if nothing had happened
