@@ -24,9 +24,12 @@
 //   const rt::FrameStats& s = plan.stats;         // geometry, impostors, snapshots, refresh_fraction,
 //                                                 // atlas_pages_used, atlas_pixel_use, ...
 //   // Several models: a planner, renderer and crowd each, planned together (one call on the
-//   // planner's threads), then each drawn:
+//   // planner's threads), then drawn together. With one atlas for all (model k of n made with
+//   // cfg_k = rt::shared_atlas_config(config, k, n), its renderer with
+//   // rt::Renderer::create(model_k, cfg_k, renderers[0].get()) after the first), every model's
+//   // blended impostors are one back-to-front draw:
 //   rt::FramePlanner::plan_many(planners, crowds, cam, seconds, rt::RenderMode::kAuto);
-//   for (k ...) renderers[k]->draw(planners[k]->plan_of_last_frame());
+//   rt::Renderer::draw_many(renderers, plans);    // plans[k] = &planners[k]->plan_of_last_frame()
 //
 // CMake: find_package(bb REQUIRED) then target_link_libraries(game PRIVATE bb::runtime).
 #pragma once
