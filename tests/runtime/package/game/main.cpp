@@ -2,7 +2,9 @@
 // offscreen targets of a headless context. Draws 12 walkers of MODEL.glb for 30 frames as
 // impostors and the same frames as geometry, and checks what a game would see: every character an
 // impostor, a snapshot for each in the first frame and far fewer after (the cache), and impostor
-// frames covering the pixels the geometry frames cover. Exit status 0 when all hold.
+// frames covering the pixels the geometry frames cover. The same walkers as two models' crowds (the
+// file loaded twice, alternate walkers each) sharing one atlas, planned with plan_many and drawn with
+// draw_many, must cover the pixels the one model's impostor frames cover. Exit status 0 when all hold.
 // GAME_DUMP=PREFIX writes the last frames as PREFIXimpostors.ppm and PREFIXgeometry.ppm.
 #include <bb/runtime.h>
 #include <bb/runtime/headless.h>
@@ -10,6 +12,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -69,9 +72,34 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "%s\n", renderer.error().message().c_str());
     return 1;
   }
+  // Two models sharing one atlas: walker i of model i % 2.
+  auto other = rt::load_model(argv[1]);
+  if (!other) {
+    std::fprintf(stderr, "%s\n", other.error().message().c_str());
+    return 1;
+  }
+  const rt::Model* kinds[2] = {&*model, &*other};
+  std::vector<rt::Crowd> crowds = {rt::Crowd(*kinds[0]), rt::Crowd(*kinds[1])};
+  for (int i = 0; i < kHumans; ++i) crowds[static_cast<std::size_t>(i % 2)].add(crowd[static_cast<std::size_t>(i)]);
+  std::vector<std::unique_ptr<rt::FramePlanner>> planners;
+  std::vector<std::unique_ptr<rt::Renderer>> renderers;
+  for (int k = 0; k < 2; ++k) {
+    const rt::ImpostorConfig cfg = rt::shared_atlas_config(config, k, 2);
+    planners.push_back(std::make_unique<rt::FramePlanner>(*kinds[k], cfg));
+    auto r = rt::Renderer::create(*kinds[k], cfg, k > 0 ? renderers.front().get() : nullptr);
+    if (!r) {
+      std::fprintf(stderr, "%s\n", r.error().message().c_str());
+      return 1;
+    }
+    renderers.push_back(std::move(*r));
+  }
+  rt::FramePlanner* planner_ptrs[2] = {planners[0].get(), planners[1].get()};
+  const rt::Crowd* crowd_ptrs[2] = {&crowds[0], &crowds[1]};
+  rt::Renderer* renderer_ptrs[2] = {renderers[0].get(), renderers[1].get()};
   auto impostors = rt::OffscreenTarget::create(kWidth, kHeight);
   auto geometry = rt::OffscreenTarget::create(kWidth, kHeight);
-  if (!impostors || !geometry) {
+  auto two = rt::OffscreenTarget::create(kWidth, kHeight);
+  if (!impostors || !geometry || !two) {
     std::fprintf(stderr, "no offscreen target\n");
     return 1;
   }
@@ -86,6 +114,10 @@ int main(int argc, char** argv) {
     (*renderer)->draw(plan);
     (*geometry)->bind(true);
     (*renderer)->draw(geometry_planner.plan(crowd, cam, seconds, rt::RenderMode::kGeometry));
+    (*two)->bind(true);
+    rt::FramePlanner::plan_many(planner_ptrs, crowd_ptrs, cam, seconds, rt::RenderMode::kImpostor);
+    const rt::FramePlan* plans[2] = {&planners[0]->plan_of_last_frame(), &planners[1]->plan_of_last_frame()};
+    rt::Renderer::draw_many(renderer_ptrs, plans);
     if (f == 0) {
       first_snapshots = plan.stats.snapshots;
       first_overlap = overlap((*impostors)->read_rgba(), (*geometry)->read_rgba(), first_either);
@@ -96,17 +128,20 @@ int main(int argc, char** argv) {
   }
   const std::vector<std::uint8_t> a = (*impostors)->read_rgba(), b = (*geometry)->read_rgba();
   last_overlap = overlap(a, b, last_either);
+  long two_either = 0;
+  const double two_overlap = overlap(a, (*two)->read_rgba(), two_either);
   if (const char* prefix = std::getenv("GAME_DUMP")) {
     dump(std::string(prefix) + "impostors.ppm", a);
     dump(std::string(prefix) + "geometry.ppm", b);
   }
   std::printf("%s\nfirst frame: %d snapshots for %d characters, %ld pixels covered by either path, %.3f of them "
-              "by both; then %d snapshots for %d impostors drawn; last frame: %ld pixels, %.3f by both\n",
+              "by both; then %d snapshots for %d impostors drawn; last frame: %ld pixels, %.3f by both; two models "
+              "in one atlas against one: %ld pixels, %.3f by both\n",
               context.value()->description().c_str(), first_snapshots, kHumans, first_either, first_overlap,
-              later_snapshots, later_impostors, last_either, last_overlap);
+              later_snapshots, later_impostors, last_either, last_overlap, two_either, two_overlap);
   const bool ok = first_snapshots == kHumans && later_impostors == kHumans * (kFrames - 1) &&
                   later_snapshots < later_impostors / 4 && first_either > 2000 && first_overlap > 0.9 &&
-                  last_overlap > 0.5;
+                  last_overlap > 0.5 && two_either > 2000 && two_overlap > 0.98;
   std::printf("%s\n", ok ? "ok" : "FAILED");
   return ok ? 0 : 1;
 }
