@@ -239,20 +239,20 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   // 1024: eight models at 10,000 humans share one, nine do not), the models take an atlas each.
   bool share = s.shared_atlas && nm > 1;
   std::vector<ImpostorConfig> configs = configs_for(share);
-  for (int attempt = 0; renderers.size() < static_cast<std::size_t>(nm); ++attempt) {
-    const int m = static_cast<int>(renderers.size());
-    auto r = Renderer::create(*models[m], configs[m], share && m > 0 ? renderers.front().get() : nullptr);
-    if (!r) {
-      if (!share || m > 0 || attempt > 0) return r.error();
-      share = false;  // the shared atlas's texture was refused: an atlas each
-      configs = configs_for(false);
-      continue;
-    }
-    renderers.push_back(std::move(*r));
-    renderer_ptrs.push_back(renderers.back().get());
-    out.coverage_group = renderers.back()->coverage_group();
+  auto made = Renderer::create(*models[0], configs[0]);  // it makes the atlas
+  if (!made && share) {  // the shared atlas's texture was refused: an atlas each
+    share = false;
+    configs = configs_for(false);
+    made = Renderer::create(*models[0], configs[0]);
   }
   out.shared_atlas = share || nm == 1;
+  for (int m = 0; m < nm; ++m) {
+    if (m > 0) made = Renderer::create(*models[m], configs[m], share ? renderers.front().get() : nullptr);
+    if (!made) return made.error();
+    renderers.push_back(std::move(*made));
+    renderer_ptrs.push_back(renderers.back().get());
+  }
+  out.coverage_group = renderers.front()->coverage_group();
   for (int m = 0; m < nm; ++m) {
     planners.push_back(std::make_unique<FramePlanner>(*models[m], configs[m]));
     crowds.emplace_back(*models[m]);

@@ -700,8 +700,11 @@ glm::vec4 quad_screen_rect(const BillboardGpu& b, const SceneCamera& camera, con
 // every renderer that draws into it (ImpostorConfig::first_page: renderers of several models may
 // share one, so that draw_many draws all their quads in one draw).
 struct AtlasGl {
-  GLuint atlas = 0, atlas_depth = 0, atlas_fbo = 0, atlas_normal = 0, atlas_offset = 0, atlas_offset_wide = 0;
-  GLuint coverage = 0;
+  GLuint atlas = 0, atlas_depth = 0, atlas_fbo = 0;
+  GLuint atlas_normal = 0;  // relit snapshots' normals, same pages as the atlas
+  GLuint atlas_offset = 0;  // depth-corrected cards' masked plane offsets (RG16F), same pages
+  GLuint atlas_offset_wide = 0;  // the same at a quarter of the resolution, made by kCoverageCs
+  GLuint coverage = 0;  // quads fitted to the coverage: a rectangle (vec4) per smallest-window slot
   bool layered = false, relight = false, parallax = false;
   int page_size = 0, pages = 0, smallest_window = 0;
   AtlasGl() = default;
@@ -748,15 +751,12 @@ struct Renderer::Impl {
   GLuint prog_clear = 0;
   // Multisampled snapshots (ImpostorConfig::snapshot_samples > 1): a scratch page, resolved.
   GLuint prog_resolve = 0, scratch_color = 0, scratch_depth = 0, scratch_fbo = 0;
-  // Quads fitted to the coverage: a rectangle (vec4) per smallest-window slot of the atlas.
-  GLuint prog_coverage = 0, coverage = 0;
+  // Quads fitted to the coverage: the pass's program (its rectangles: AtlasGl::coverage).
+  GLuint prog_coverage = 0;
   // Depth-corrected part cards (ImpostorConfig::parallax_cards, layered snapshots with one sample).
   bool parallax = false;
   bool depth_pass = false;  // ImpostorConfig::parallax_depth_pass
   bool relight = false;     // ImpostorConfig::relight (layered, one-sample snapshots only)
-  GLuint atlas_normal = 0;  // relit snapshots' normals, same pages as the atlas
-  GLuint atlas_offset = 0;  // depth-corrected cards' masked plane offsets (RG16F), same pages
-  GLuint atlas_offset_wide = 0;  // the same at a quarter of the resolution, made by kCoverageCs
   bool fits_due = false;  // a snapshot of this frame wants its rectangle
   bool any_blended = false;  // the model has an alpha-blended material
   // DrawOptions::time_stages: timestamps at the start and after snapshots, coverage, geometry,
@@ -820,9 +820,8 @@ struct Renderer::Impl {
       unflushed = 0;
     }
   }
-  // The atlas's objects (owned by shared_atlas, which renderers sharing the atlas hold alike).
+  // The atlas's objects, which renderers sharing the atlas hold alike.
   std::shared_ptr<AtlasGl> shared_atlas;
-  GLuint atlas = 0, atlas_depth = 0, atlas_fbo = 0;
   bool layered = false;  // one snapshot pass for all pages (depth is then a texture array too)
   std::vector<std::array<GLuint, 2>> lod_runs;  // per LOD: (count, first) in snapshot_scratch
   GLuint vao_billboard = 0;
@@ -926,14 +925,14 @@ struct Renderer::Impl {
   // This renderer's impostor program, atlas textures, fitted rectangles and uploaded quads.
   void bind_impostors(const ImpostorPass& p, bool use_program = true) {
     if (use_program) glUseProgram(bb[static_cast<std::size_t>(p.mode)].prog);
-    glBindTextureUnit(2, atlas);
+    glBindTextureUnit(2, shared_atlas->atlas);
     if (parallax) {
-      glBindTextureUnit(4, atlas_offset);
-      glBindTextureUnit(6, atlas_offset_wide);
+      glBindTextureUnit(4, shared_atlas->atlas_offset);
+      glBindTextureUnit(6, shared_atlas->atlas_offset_wide);
     }
-    if (relight) glBindTextureUnit(5, atlas_normal);
+    if (relight) glBindTextureUnit(5, shared_atlas->atlas_normal);
     glBindVertexArray(vao_billboard);
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, coverage);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, shared_atlas->coverage);
   }
 
   // The pass's blending and sampling state, the same whichever renderer draws; returns whether
@@ -1145,12 +1144,12 @@ void Renderer::Impl::take_snapshots(const FramePlan& plan, bool time_stages) {
     // and, for depth-corrected cards, their wide plane offsets.
     glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT | GL_FRAMEBUFFER_BARRIER_BIT);
     glUseProgram(prog_coverage);
-    glBindTextureUnit(2, atlas);
+    glBindTextureUnit(2, shared_atlas->atlas);
     if (parallax) {
-      glBindTextureUnit(4, atlas_offset);
-      glBindImageTexture(0, atlas_offset_wide, 0, GL_TRUE, 0, GL_WRITE_ONLY, GL_RG16F);
+      glBindTextureUnit(4, shared_atlas->atlas_offset);
+      glBindImageTexture(0, shared_atlas->atlas_offset_wide, 0, GL_TRUE, 0, GL_WRITE_ONLY, GL_RG16F);
     }
-    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, coverage);
+    glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, shared_atlas->coverage);
     glBindBufferRange(GL_SHADER_STORAGE_BUFFER, 1, snapshots.id, 0,
                       static_cast<GLsizeiptr>(snapshot_scratch.size() * sizeof(SnapshotGpu)));
     glDispatchCompute(static_cast<GLuint>(snapshot_scratch.size()), 1, 1);
@@ -1192,7 +1191,7 @@ void Renderer::Impl::take_snapshot_passes(const FramePlan& plan) {
   GLint prev_fbo = 0, vp[4];
   glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &prev_fbo);
   glGetIntegerv(GL_VIEWPORT, vp);
-  glBindFramebuffer(GL_DRAW_FRAMEBUFFER, atlas_fbo);
+  glBindFramebuffer(GL_DRAW_FRAMEBUFFER, shared_atlas->atlas_fbo);
   glViewport(0, 0, config.page_size, config.page_size);
   for (int k = 0; k < 4; ++k) glEnable(GL_CLIP_DISTANCE0 + k);
   if (snapshot_samples > 1) {
@@ -1204,8 +1203,8 @@ void Renderer::Impl::take_snapshot_passes(const FramePlan& plan) {
       flushes_for_bound_target([&] { return due_indices(b, e - b); }, 6);
       draw_snapshot_range(b, e - b);
       // The resolve pass reuses the clear's vertex shader, whose clip distances keep every vertex.
-      glBindFramebuffer(GL_DRAW_FRAMEBUFFER, atlas_fbo);
-      if (!layered) glNamedFramebufferTextureLayer(atlas_fbo, GL_COLOR_ATTACHMENT0, atlas, 0, due[b].page);
+      glBindFramebuffer(GL_DRAW_FRAMEBUFFER, shared_atlas->atlas_fbo);
+      if (!layered) glNamedFramebufferTextureLayer(shared_atlas->atlas_fbo, GL_COLOR_ATTACHMENT0, shared_atlas->atlas, 0, due[b].page);
       glDisable(GL_DEPTH_TEST);
       glUseProgram(prog_resolve);
       glBindTextureUnit(3, scratch_color);
@@ -1222,7 +1221,7 @@ void Renderer::Impl::take_snapshot_passes(const FramePlan& plan) {
     for (std::size_t b = 0; b < due.size();) {
       std::size_t e = b;
       while (e < due.size() && due[e].page == due[b].page) ++e;
-      glNamedFramebufferTextureLayer(atlas_fbo, GL_COLOR_ATTACHMENT0, atlas, 0, due[b].page);
+      glNamedFramebufferTextureLayer(shared_atlas->atlas_fbo, GL_COLOR_ATTACHMENT0, shared_atlas->atlas, 0, due[b].page);
       draw_snapshot_range(b, e - b);
       b = e;
     }
@@ -1518,16 +1517,6 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
     glNamedBufferStorage(a.coverage, static_cast<GLsizeiptr>(whole.size() * sizeof(glm::vec4)), whole.data(), 0);
     d.shared_atlas = std::move(made);
   }
-  {
-    const AtlasGl& a = *d.shared_atlas;
-    d.atlas = a.atlas;
-    d.atlas_depth = a.atlas_depth;
-    d.atlas_fbo = a.atlas_fbo;
-    d.atlas_normal = a.atlas_normal;
-    d.atlas_offset = a.atlas_offset;
-    d.atlas_offset_wide = a.atlas_offset_wide;
-    d.coverage = a.coverage;
-  }
   if (d.snapshot_samples > 1) {
     GLint max_samples = 1;
     glGetIntegerv(GL_MAX_SAMPLES, &max_samples);
@@ -1740,17 +1729,20 @@ void Renderer::draw_many(std::span<Renderer* const> renderers, std::span<const F
   const SceneCamera& camera = plans[first]->camera;
   const glm::mat4 viewproj = camera.projection() * camera.view();
   const glm::vec3 fwd = glm::normalize(camera.target - camera.eye);
-  // Renderers that share one atlas and draw their quads alike (the same program and kind of quads):
-  // every model's quads in one upload, back to front (ties in model, then plan order), one draw.
-  bool one_draw = d0.shared_atlas != nullptr;
-  for (std::size_t k = first + 1; k < n && one_draw; ++k) {
+  // Renderers whose impostor programs are alike (the same config and kind of quads, and the same
+  // light where they relight) draw with the first one's: on llvmpipe a change of program costs each
+  // draw after it its own state validation. Those that also share one atlas draw every model's
+  // quads in one upload, back to front (ties in model, then plan order), and one draw.
+  bool alike = true, one_atlas = true;
+  for (std::size_t k = first + 1; k < n; ++k) {
     const Impl& d = *renderers[k]->impl_;
     if (plans[k]->billboards.empty()) continue;
-    one_draw = d.shared_atlas == d0.shared_atlas && d.billboard_source == d0.billboard_source &&
-               (plans[k]->stats.part_cards > 0) == (plans[first]->stats.part_cards > 0) && d.depth_pass == d0.depth_pass &&
-               (!d.relight || d.light == d0.light);
+    alike = alike && d.billboard_source == d0.billboard_source &&
+            (plans[k]->stats.part_cards > 0) == (plans[first]->stats.part_cards > 0) && d.depth_pass == d0.depth_pass &&
+            (!d.relight || d.light == d0.light);
+    one_atlas = one_atlas && d.shared_atlas == d0.shared_atlas;
   }
-  if (one_draw) {
+  if (alike && one_atlas) {
     d0.many_depth.clear();
     d0.many_index.clear();
     d0.many_model.clear();
@@ -1836,19 +1828,9 @@ void Renderer::draw_many(std::span<Renderer* const> renderers, std::span<const F
     pass[k].cards = plans[k]->stats.part_cards > 0;
     d.upload_impostors(pass[k], *plans[k], d.billboard_scratch.data(), d.billboard_scratch.size(), viewproj);
   }
-  // Renderers whose impostor programs are alike (the same config, and the same light where they
-  // relight) draw with the first one's, so that a change of renderer between two draws only binds
-  // its atlas and quads: on llvmpipe a change of program costs each draw after it its own state
-  // validation.
-  bool shared = true;
-  for (std::size_t k = first + 1; k < n; ++k) {
-    const Impl& d = *renderers[k]->impl_;
-    if (d.billboard_scratch.empty()) continue;
-    shared = shared && d.billboard_source == d0.billboard_source && pass[k].cards == pass[first].cards &&
-             d.depth_pass == d0.depth_pass && (!d.relight || d.light == d0.light);
-  }
+  // Alike programs: a change of renderer between two draws binds only its atlas and quads.
   const bool single_sampled = Impl::begin_impostor_state(1);
-  if (shared) glUseProgram(d0.bb[static_cast<std::size_t>(pass[first].mode)].prog);
+  if (alike) glUseProgram(d0.bb[static_cast<std::size_t>(pass[first].mode)].prog);
   std::size_t bound = n;
   for (int layer = 0; layer < layers; ++layer)
     for (std::size_t k = 0; k < n; ++k) {
@@ -1857,10 +1839,10 @@ void Renderer::draw_many(std::span<Renderer* const> renderers, std::span<const F
       const auto& range = d.layer_ranges[static_cast<std::size_t>(layer)];
       if (range[1] == 0) continue;
       if (bound != k) {
-        d.bind_impostors(pass[k], !shared);
+        d.bind_impostors(pass[k], !alike);
         bound = k;
       }
-      (shared ? d0 : d).draw_impostor_range(pass[k], range[0], static_cast<GLsizei>(range[1]));
+      (alike ? d0 : d).draw_impostor_range(pass[k], range[0], static_cast<GLsizei>(range[1]));
     }
   Impl::end_impostor_state(single_sampled);
   Impl::end_draw();
@@ -1884,7 +1866,7 @@ StageTimes Renderer::stage_times() const {
 std::vector<std::uint8_t> Renderer::read_atlas_page(int page) const {
   const int s = impl_->config.page_size;
   std::vector<std::uint8_t> px(static_cast<std::size_t>(s) * s * 4);
-  glGetTextureSubImage(impl_->atlas, 0, 0, 0, page, s, s, 1, GL_RGBA, GL_UNSIGNED_BYTE, static_cast<GLsizei>(px.size()),
+  glGetTextureSubImage(impl_->shared_atlas->atlas, 0, 0, 0, page, s, s, 1, GL_RGBA, GL_UNSIGNED_BYTE, static_cast<GLsizei>(px.size()),
                        px.data());
   return px;
 }
@@ -1893,7 +1875,7 @@ int Renderer::coverage_group() const { return impl_->coverage_group; }
 
 glm::vec4 Renderer::coverage_rect(int slot) const {
   glm::vec4 r(0.0f);
-  glGetNamedBufferSubData(impl_->coverage, static_cast<GLintptr>(slot) * 16, 16, &r);
+  glGetNamedBufferSubData(impl_->shared_atlas->coverage, static_cast<GLintptr>(slot) * 16, 16, &r);
   return r;
 }
 
@@ -1905,7 +1887,7 @@ double Renderer::drawn_quad_texels(const FramePlan& plan) const {
     if (b.layer.z > 0.5f) slots = std::max(slots, static_cast<int>(b.layer.y) + 1);
   std::vector<glm::vec4> covered(static_cast<std::size_t>(slots));
   if (slots > 0)
-    glGetNamedBufferSubData(impl_->coverage, 0, static_cast<GLsizeiptr>(covered.size() * sizeof(glm::vec4)), covered.data());
+    glGetNamedBufferSubData(impl_->shared_atlas->coverage, 0, static_cast<GLsizeiptr>(covered.size() * sizeof(glm::vec4)), covered.data());
   double texels = 0;
   for (const BillboardGpu& b : plan.billboards) {
     glm::vec4 r = b.rect;

@@ -133,11 +133,13 @@ struct ImpostorConfig {
   // planning +0.04 ms for our four bodies; RiggedSimple orbiting at 17 degrees 3.9-4.9x against
   // 3.8-4.4x), 5 % more quad texels (vertices lie up to a texel past the texel centres they cover);
   // part cards at 8 degrees 4.62-4.65 against 4.81-4.91 ms (planning +0.17 ms, 7 % more quad
-  // texels), 25.828 against 25.830 dB. Off by default: the fit costs CPU time per vertex, about 24 us
-  // a CesiumMan snapshot (bench_runtime: 10,000 walking, 9.5 % refreshed, planning 22.8 against 1.0
-  // ms a frame; 1,000 with part cards 4.2 against 1.4 ms), the pass GPU time per texel; so it suits
-  // small crowds, and on a GPU it is not measured yet (the pass was 0.07 ms of the H200's 0.3 ms
-  // impostor frame at 20 humans).
+  // texels), 25.828 against 25.830 dB; with one atlas for the four bodies (thirty-ninth session)
+  // part cards 11 % faster. Off by default: the fit costs CPU time per vertex, about 24 us a
+  // CesiumMan snapshot (bench_runtime: 10,000 walking, 9.5 % refreshed, planning 22.8 against 1.0
+  // ms a frame; 1,000 with part cards 4.2 against 1.4 ms), the pass GPU time per texel. On the
+  // H200, where the pass is 0.02 ms, the fit's planning made the frame slower (20 humans 0.62-0.69x
+  // against 0.76x, part cards 0.22x against 0.27-0.28x); the flow test bed takes it on a software
+  // rasterizer only (--quad-fit auto).
   bool fit_quads_from_vertices = false;
   // Invocations per side of the coverage pass's work groups (one group per new snapshot; 4, 8 or
   // 16; 0: 4 on a software rasterizer, 16 on a GPU). Each invocation walks its share of the
