@@ -77,6 +77,7 @@ struct FlowSettings {
   bool parallax_depth_pass = false;         // ImpostorConfig::parallax_depth_pass
   bool lead_cards = true;                   // ImpostorConfig::lead_cards
   bool aligned_snapshots = false;           // ImpostorConfig::aligned_snapshots (texels on pixels)
+  float aligned_phase = 0.0f;               // ImpostorConfig::aligned_phase (pixels)
   bool exact_scale = false;                 // ImpostorConfig::texel_per_pixel (the asked texels per pixel, not the window's)
   int snapshot_samples = 1;                 // ImpostorConfig::snapshot_samples
   int impostor_taps = 4;                    // ImpostorConfig::impostor_taps
@@ -213,7 +214,7 @@ struct FlowArgs {
   std::string card_depth = "off";
   std::string relight = "off";
   std::string card_lead = "on";
-  std::string snapshot_grid = "free";
+  std::string snapshot_grid = "auto";
   std::string snapshot_scale = "auto";
   int snapshot_samples = 1;
   std::string impostor_taps = "auto";

@@ -160,6 +160,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   config.parallax_depth_pass = s.parallax_depth_pass;
   config.lead_cards = s.lead_cards;
   config.aligned_snapshots = s.aligned_snapshots;
+  config.aligned_phase = s.aligned_phase;
   config.texel_per_pixel = s.exact_scale;
   config.snapshot_samples = s.snapshot_samples;
   config.impostor_taps = s.impostor_taps;

@@ -614,7 +614,7 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
       } else if (refresh) {
         std::optional<SnapshotCamera> aligned;
         if (config_.aligned_snapshots)
-          aligned = make_aligned_snapshot_camera(camera, ta, radius, win.size, config_.texels_per_pixel);
+          aligned = make_aligned_snapshot_camera(camera, ta, radius, win.size, config_.texels_per_pixel, config_.aligned_phase);
         if (aligned) sc = *aligned;
         CacheState next = cs;
         next.valid = true;
@@ -1036,7 +1036,7 @@ FramePlanner::PartCache FramePlanner::part_card(const PartJob& job, const Charac
   const glm::vec3 vo = cam.vo;
   const glm::vec3 los = job.lead ? glm::normalize(centre - camera.eye) : cam.vo;
   if (config_.aligned_snapshots)
-    if (auto a = make_aligned_snapshot_camera(camera, centre, r, win.size, config_.texels_per_pixel)) cam = *a;
+    if (auto a = make_aligned_snapshot_camera(camera, centre, r, win.size, config_.texels_per_pixel, config_.aligned_phase)) cam = *a;
   // The card at snapshot time (the window's plane through its centre), in the bone's palette space.
   PartCache next = pc;
   const glm::mat4 inv = glm::inverse(bone);

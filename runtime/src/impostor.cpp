@@ -101,7 +101,8 @@ float aligned_pixels(const SceneCamera& camera, const glm::vec3& centre, float r
 }
 
 std::optional<SnapshotCamera> make_aligned_snapshot_camera(const SceneCamera& camera, const glm::vec3& centre,
-                                                           float radius, int window_texels, float texels_per_pixel) {
+                                                           float radius, int window_texels, float texels_per_pixel,
+                                                           float phase) {
   if (!(texels_per_pixel > 0.0f) || aligned_pixels(camera, centre, radius) * texels_per_pixel > window_texels)
     return std::nullopt;
   glm::vec3 right, up, fwd;
@@ -110,10 +111,11 @@ std::optional<SnapshotCamera> make_aligned_snapshot_camera(const SceneCamera& ca
   const float z = glm::dot(v, fwd);
   const float ppm = camera.pixels_per_metre(z);  // at the centre's depth
   // The centre's projection in pixels from the lower-left corner of the viewport, snapped to the
-  // nearest pixel corner.
+  // nearest point `phase` right of and above a pixel corner.
   const glm::vec2 half_view(0.5f * static_cast<float>(camera.width), 0.5f * static_cast<float>(camera.height));
   const glm::vec2 px = half_view + ppm * glm::vec2(glm::dot(v, right), glm::dot(v, up));
-  const glm::vec2 lateral = (glm::round(px) - half_view) / ppm;  // the window centre, metres from the axis
+  const glm::vec2 snapped = glm::round(px - phase) + phase;
+  const glm::vec2 lateral = (snapped - half_view) / ppm;  // the window centre, metres from the axis
   SnapshotCamera c;
   c.perspective = true;
   c.ho = right;

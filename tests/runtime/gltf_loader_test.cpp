@@ -69,7 +69,8 @@ struct GltfFile {
     }
   }
   std::string write(const std::string& name) {
-    fs::path dir = fs::temp_directory_path() / "bb_gltf_loader_test";
+    // A folder of the running test's own (CTest runs the tests in processes of their own, at once).
+    fs::path dir = fs::temp_directory_path() / "bb_gltf_loader_test" / ::testing::UnitTest::GetInstance()->current_test_info()->name();
     fs::create_directories(dir);
     j["buffers"] = json::array({{{"uri", name + ".bin"}, {"byteLength", bin.size()}}});
     std::ofstream(dir / (name + ".bin"), std::ios::binary) << bin;
@@ -614,6 +615,7 @@ TEST(GltfLoader, FuzzFindingsAreErrors) {
     u32(44);  // 36 bytes follow
     glb += std::string("BIN\0", 4);
     glb.append(reinterpret_cast<const char*>(triangle.data()), 36);
+    fs::create_directories(fs::temp_directory_path() / "bb_gltf_loader_test");
     const std::string path = (fs::temp_directory_path() / "bb_gltf_loader_test" / "bin_chunk_long.glb").string();
     std::ofstream(path, std::ios::binary) << glb;
     auto m = load_model(path);

@@ -61,6 +61,25 @@ TEST(SnapshotCamera, AlignedWindowIsCutOutOfTheScreen) {
   EXPECT_TRUE(make_aligned_snapshot_camera(cam, centre, 1.0f, static_cast<int>(px) + 1, 1.0f).has_value());
   EXPECT_FALSE(make_aligned_snapshot_camera(cam, cam.eye + glm::vec3(0.1f, 0, 0), 1.0f, 256, 1.0f).has_value());
   EXPECT_TRUE(std::isinf(aligned_pixels(cam, cam.eye + 5.0f * glm::normalize(cam.eye - cam.target), 1.0f)));  // behind
+  // With a phase the window's centre sits that far right of and above a pixel corner, and points
+  // still land in the window where they land on the screen.
+  for (float phase : {0.125f, 0.5f, 0.875f}) {
+    auto a = make_aligned_snapshot_camera(cam, centre, 0.5f, 256, 1.0f, phase);
+    ASSERT_TRUE(a.has_value());
+    const glm::vec2 c = pixel(screen, a->ta, glm::vec2(1280, 1024));
+    EXPECT_NEAR(c.x - std::floor(c.x), phase, 2e-3f) << phase;
+    EXPECT_NEAR(c.y - std::floor(c.y), phase, 2e-3f) << phase;
+    // The nearest such point to the centre's own projection: at most half a pixel away.
+    const glm::vec2 p = pixel(screen, centre, glm::vec2(1280, 1024));
+    EXPECT_LE(std::abs(c.x - p.x), 0.5f + 2e-3f);
+    EXPECT_LE(std::abs(c.y - p.y), 0.5f + 2e-3f);
+    const glm::mat4 snap = a->projection() * a->view();
+    const glm::vec3 d(0.3f, 0.8f, -0.4f);
+    const glm::vec2 on_screen = pixel(screen, centre + d, glm::vec2(1280, 1024)) - c;
+    const glm::vec2 in_window = pixel(snap, centre + d, glm::vec2(256)) - glm::vec2(128);
+    EXPECT_NEAR(in_window.x, on_screen.x, 2e-3f);
+    EXPECT_NEAR(in_window.y, on_screen.y, 2e-3f);
+  }
 }
 
 TEST(SnapshotCamera, FrameFromEyeAndUp) {

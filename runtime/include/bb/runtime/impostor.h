@@ -77,8 +77,12 @@ float aligned_pixels(const SceneCamera& camera, const glm::vec3& centre, float r
 // on the plane through ta parallel to the screen, such a snapshot is the geometry's own picture
 // at the moment it is taken, with no resampling. nullopt when the window cannot hold the sphere
 // at that scale (aligned_pixels * texels_per_pixel > window_texels) or the eye is inside it.
+// `phase` (pixels, 0 <= phase < 1) moves the window's centre that far right of and above the
+// pixel corner, both axes, so that the texel grid sits that far off the pixel grid (at one texel
+// per pixel, texel centres phase right of and above pixel centres): ImpostorConfig::aligned_phase.
 std::optional<SnapshotCamera> make_aligned_snapshot_camera(const SceneCamera& camera, const glm::vec3& centre,
-                                                           float radius, int window_texels, float texels_per_pixel);
+                                                           float radius, int window_texels, float texels_per_pixel,
+                                                           float phase = 0.0f);
 
 // Section 5.2: the "view matrix" of a character = the snapshot camera's frame expressed in the
 // character's frame (camera x character): columns Ho, Uo, -Vo rotated by the inverse of the
