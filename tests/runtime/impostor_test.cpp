@@ -6,6 +6,7 @@
 #include <set>
 #include <tuple>
 
+#include <glm/gtc/constants.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
 
@@ -80,6 +81,40 @@ TEST(SnapshotCamera, AlignedWindowIsCutOutOfTheScreen) {
     EXPECT_NEAR(in_window.x, on_screen.x, 2e-3f);
     EXPECT_NEAR(in_window.y, on_screen.y, 2e-3f);
   }
+}
+
+// aligned_pixels is the widest half of the sphere's picture about its centre's projection, either
+// axis, doubled: the same as the extremes over points of the sphere's surface, projected.
+TEST(SnapshotCamera, AlignedPixelsHoldTheSpheresPicture) {
+  SceneCamera cam;
+  cam.width = 1280;
+  cam.height = 1024;
+  cam.eye = {3, 7, 18};
+  cam.target = {0, 1, 0};
+  glm::vec3 right, up, fwd;
+  camera_axes(cam, right, up, fwd);
+  const float ppm1 = cam.pixels_per_metre(1.0f);
+  const glm::vec3 centres[] = {{-4.3f, 0.9f, 2.2f}, {0, 1, 0}, {12, 0, -30}, {-20, 3, 5}, {2, 6.5f, 15}};
+  for (const glm::vec3& c : centres)
+    for (float r : {0.3f, 1.0f, 2.5f}) {
+      const glm::vec3 v = c - cam.eye;
+      const float z0 = glm::dot(v, fwd);
+      const glm::vec2 t0(glm::dot(v, right) / z0, glm::dot(v, up) / z0);
+      glm::vec2 lo(1e9f), hi(-1e9f);
+      const int n = 400;
+      for (int i = 0; i <= n; ++i)
+        for (int j = 0; j < 2 * n; ++j) {
+          const float th = glm::pi<float>() * static_cast<float>(i) / n, ph = glm::pi<float>() * static_cast<float>(j) / n;
+          const glm::vec3 p = v + r * glm::vec3(std::sin(th) * std::cos(ph), std::cos(th), std::sin(th) * std::sin(ph));
+          const float z = glm::dot(p, fwd);
+          const glm::vec2 t(glm::dot(p, right) / z, glm::dot(p, up) / z);
+          lo = glm::min(lo, t);
+          hi = glm::max(hi, t);
+        }
+      const glm::vec2 half = glm::max(hi - t0, t0 - lo);
+      const float expected = 2.0f * ppm1 * std::max(half.x, half.y);
+      EXPECT_NEAR(aligned_pixels(cam, c, r), expected, 2e-3f * expected) << c.x << " " << c.y << " " << c.z << " r " << r;
+    }
 }
 
 TEST(SnapshotCamera, FrameFromEyeAndUp) {
