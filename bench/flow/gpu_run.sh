@@ -462,6 +462,20 @@ set_s39f() {
   flow f39_parts_view_h1000 $C4 --frames 30 --humans 1000 --impostor-parts --sweep view
   flow f39_best_h1000 $C4 --frames 30 --humans 1000 --view 8 --posture off --impostor-parts --texels-per-pixel 2 --impostor-edges blend --card-depth pass
 }
+# Whole impostors on the pixel grid, 1/8 pixel off, with one tap (--snapshot-grid auto, the default
+# since the fortieth session) against two taps on the free grid (--snapshot-grid free), alternated:
+# measured on llvmpipe only so far.
+set_s40() {
+  for i in 1 2 3; do
+    for g in auto free; do
+      flow g40_${g}_main_$i $C4 --frames 120 --snapshot-grid $g
+      flow g40_${g}_worst_$i $C4 --frames 60 --posture 0 --view 0 --snapshot-grid $g
+      flow g40_${g}_h1000_$i $C4 --frames 40 --humans 1000 --snapshot-grid $g
+      flow g40_${g}_rs_orbit_$i --model $M/RiggedSimple.gltf --frames 90 --orbit 30 --posture off --view 17 --snapshot-grid $g
+    done
+  done
+  for g in auto free; do flow g40_${g}_sweep_view_h1000 $C4 --frames 40 --humans 1000 --sweep view --snapshot-grid $g; done
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"
