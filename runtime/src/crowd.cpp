@@ -517,7 +517,7 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
     // Aligned snapshots hold the sphere's whole picture (wider off the axis) at the exact scale.
     float need = pixels;
     if (config_.aligned_snapshots) {
-      const float a = aligned_pixels(camera, ta, radius);
+      const float a = aligned_pixels(camera.eye, cam_right, cam_up, fwd, ppm1, ta, radius);
       if (std::isfinite(a)) need = a;
     }
     const int wclass = choose_window(config_.windows, need * config_.texels_per_pixel);

@@ -98,10 +98,14 @@ float tangent_half_extent(float x, float z, float r) {
 float aligned_pixels(const SceneCamera& camera, const glm::vec3& centre, float radius) {
   glm::vec3 right, up, fwd;
   camera_axes(camera, right, up, fwd);
-  const glm::vec3 v = centre - camera.eye;
+  return aligned_pixels(camera.eye, right, up, fwd, camera.pixels_per_metre(1.0f), centre, radius);
+}
+
+float aligned_pixels(const glm::vec3& eye, const glm::vec3& right, const glm::vec3& up, const glm::vec3& fwd,
+                     float ppm1, const glm::vec3& centre, float radius) {
+  const glm::vec3 v = centre - eye;
   const float z = glm::dot(v, fwd);
   if (!(z > 1.05f * radius) || !(glm::length(v) > 1.05f * radius)) return std::numeric_limits<float>::infinity();
-  const float ppm1 = camera.pixels_per_metre(1.0f);
   const float hx = tangent_half_extent(glm::dot(v, right), z, radius);
   const float hy = tangent_half_extent(glm::dot(v, up), z, radius);
   return 2.0f * ppm1 * std::max(hx, hy);

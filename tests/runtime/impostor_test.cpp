@@ -114,6 +114,8 @@ TEST(SnapshotCamera, AlignedPixelsHoldTheSpheresPicture) {
       const glm::vec2 half = glm::max(hi - t0, t0 - lo);
       const float expected = 2.0f * ppm1 * std::max(half.x, half.y);
       EXPECT_NEAR(aligned_pixels(cam, c, r), expected, 2e-3f * expected) << c.x << " " << c.y << " " << c.z << " r " << r;
+      // The planner's form, from the frame's axes: the same number.
+      EXPECT_EQ(aligned_pixels(cam.eye, right, up, fwd, ppm1, c, r), aligned_pixels(cam, c, r));
     }
 }
 

@@ -69,6 +69,10 @@ void camera_axes(const SceneCamera& camera, glm::vec3& right, glm::vec3& up, glm
 // hold. Exact for the sphere (the tangent planes through the eye), so wider than 2 r ppm / depth
 // off the axis. Infinite when the eye is within 1.05 radius of the centre or behind it.
 float aligned_pixels(const SceneCamera& camera, const glm::vec3& centre, float radius);
+// The same from the camera's eye, its axes (camera_axes) and pixels_per_metre(1): for a caller that
+// asks it of many centres in one frame (the planner, every character every frame).
+float aligned_pixels(const glm::vec3& eye, const glm::vec3& right, const glm::vec3& up, const glm::vec3& forward,
+                     float pixels_per_metre_at_1, const glm::vec3& centre, float radius);
 
 // A snapshot camera whose texels lie on the scene camera's pixels: its image plane is the
 // screen's (Ho, Uo, Vo = the camera's right, up, forward), its window of `window_texels` texels
