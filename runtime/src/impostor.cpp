@@ -114,6 +114,7 @@ float aligned_pixels(const glm::vec3& eye, const glm::vec3& right, const glm::ve
 std::optional<SnapshotCamera> make_aligned_snapshot_camera(const SceneCamera& camera, const glm::vec3& centre,
                                                            float radius, int window_texels, float texels_per_pixel,
                                                            float phase) {
+  assert(phase >= 0.0f && phase < 1.0f && "ImpostorConfig::aligned_phase: pixels, 0 <= phase < 1");
   if (!(texels_per_pixel > 0.0f) || aligned_pixels(camera, centre, radius) * texels_per_pixel > window_texels)
     return std::nullopt;
   glm::vec3 right, up, fwd;
