@@ -115,10 +115,11 @@ std::optional<SnapshotCamera> make_aligned_snapshot_camera(const SceneCamera& ca
                                                            float radius, int window_texels, float texels_per_pixel,
                                                            float phase) {
   assert(phase >= 0.0f && phase < 1.0f && "ImpostorConfig::aligned_phase: pixels, 0 <= phase < 1");
-  if (!(texels_per_pixel > 0.0f) || aligned_pixels(camera, centre, radius) * texels_per_pixel > window_texels)
-    return std::nullopt;
   glm::vec3 right, up, fwd;
   camera_axes(camera, right, up, fwd);
+  if (!(texels_per_pixel > 0.0f) ||
+      aligned_pixels(camera.eye, right, up, fwd, camera.pixels_per_metre(1.0f), centre, radius) * texels_per_pixel > window_texels)
+    return std::nullopt;
   const glm::vec3 v = centre - camera.eye;
   const float z = glm::dot(v, fwd);
   const float ppm = camera.pixels_per_metre(z);  // at the centre's depth

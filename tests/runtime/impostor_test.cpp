@@ -23,15 +23,21 @@ void expect_vec3(glm::vec3 a, glm::vec3 b, float eps = 1e-6f) {
   EXPECT_NEAR(a.z, b.z, eps);
 }
 
-// An aligned snapshot camera cuts its window out of the scene camera's image: its centre lies on
-// a pixel corner, and any point lands in the window exactly where it lands on the screen, one
-// texel per pixel (half a texel with 2 texels per pixel).
-TEST(SnapshotCamera, AlignedWindowIsCutOutOfTheScreen) {
+// The scene camera of the aligned-snapshot tests: 1280x1024, looking down at the origin's surroundings.
+SceneCamera screen_camera() {
   SceneCamera cam;
   cam.width = 1280;
   cam.height = 1024;
   cam.eye = {3, 7, 18};
   cam.target = {0, 1, 0};
+  return cam;
+}
+
+// An aligned snapshot camera cuts its window out of the scene camera's image: its centre lies on
+// a pixel corner, and any point lands in the window exactly where it lands on the screen, one
+// texel per pixel (half a texel with 2 texels per pixel).
+TEST(SnapshotCamera, AlignedWindowIsCutOutOfTheScreen) {
+  const SceneCamera cam = screen_camera();
   const glm::mat4 screen = cam.projection() * cam.view();
   auto pixel = [&](const glm::mat4& m, glm::vec3 p, glm::vec2 size) {
     glm::vec4 c = m * glm::vec4(p, 1.0f);
@@ -86,11 +92,7 @@ TEST(SnapshotCamera, AlignedWindowIsCutOutOfTheScreen) {
 // aligned_pixels is the widest half of the sphere's picture about its centre's projection, either
 // axis, doubled: the same as the extremes over points of the sphere's surface, projected.
 TEST(SnapshotCamera, AlignedPixelsHoldTheSpheresPicture) {
-  SceneCamera cam;
-  cam.width = 1280;
-  cam.height = 1024;
-  cam.eye = {3, 7, 18};
-  cam.target = {0, 1, 0};
+  const SceneCamera cam = screen_camera();
   glm::vec3 right, up, fwd;
   camera_axes(cam, right, up, fwd);
   const float ppm1 = cam.pixels_per_metre(1.0f);
