@@ -15,6 +15,7 @@ PKGS=(
   libmeshoptimizer-dev libwebp-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libegl-dev libgl-dev libgles-dev libegl-mesa0 libgl1-mesa-dri
+  python3  # bench/flow/*.sh read the test bed's JSON reports with it (and a test runs targets_matrix.sh)
 )
 # Node.js and npm only when the machine has none (some images ship NodeSource's node with its own npm).
 command -v npm >/dev/null 2>&1 || PKGS+=(nodejs npm)

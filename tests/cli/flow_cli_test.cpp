@@ -1,6 +1,7 @@
 // `bodybuilder flow` and `bodybuilder demo` as a user runs them (headless EGL; llvmpipe here).
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -736,6 +737,59 @@ TEST(FlowCli, AnimationHoldsEveryMeasuredFrameAndOutlinesTheRefreshes) {
 
 // --targets: the targets with the user's own settings, each from a run of its own, and
 // the table agrees with those runs.
+// bench/flow/targets_matrix.sh: a row per setting, each cell bold exactly where its target is missed,
+// and a setting the CLI refuses named with the CLI's reason.
+TEST(FlowCli, TargetsMatrixScriptMarksTheTargetsMissed) {
+  const std::string script = std::string(BB_SOURCE_DIR) + "/bench/flow/targets_matrix.sh";
+  Out o = bb::test::run_command("BB=" + std::string(BB_BIN_DIR) + "/bodybuilder FRAMES=2 bash " + script +
+                                " '--humans 4 --size 320x256' '--humans 4 --no-such-flag'");
+  ASSERT_EQ(o.status, 0) << o.text;
+  std::vector<std::string> lines;
+  for (std::size_t b = 0, e; b < o.text.size(); b = e + 1) {
+    e = o.text.find('\n', b);
+    if (e == std::string::npos) e = o.text.size();
+    lines.push_back(o.text.substr(b, e - b));
+  }
+  ASSERT_GE(lines.size(), 4u) << o.text;
+  if (lines[2].find("failed") != std::string::npos && lines[2].find("EGL") != std::string::npos)
+    GTEST_SKIP() << "no headless OpenGL: " << lines[2];
+  EXPECT_EQ(lines[0], "| setting | worst | 5° | 8° | 17° | PSNR at 8° (dB) | 10,000 humans |");
+  // The row's cells.
+  std::vector<std::string> cells;
+  const std::string& row = lines[2];
+  for (std::size_t b = 1, e; (e = row.find(" |", b)) != std::string::npos; b = e + 2) cells.push_back(row.substr(b + 1, e - b - 1));
+  ASSERT_EQ(cells.size(), 7u) << row;
+  EXPECT_EQ(cells[0], "`--humans 4 --size 320x256`");
+  // A cell's leading number ("13.48x", "12.9 (11.8)"), and whether the cell is bold.
+  auto value = [](std::string c, bool* bold) {
+    *bold = c.size() > 4 && c.compare(0, 2, "**") == 0 && c.compare(c.size() - 2, 2, "**") == 0;
+    if (*bold) c = c.substr(2, c.size() - 4);
+    return std::stod(c);
+  };
+  bool bold = false;
+  const double worst = value(cells[1], &bold);
+  EXPECT_GT(worst, 0.0);
+  // Bold from the unrounded figure: not checked where the printed one is within rounding of the target.
+  auto check = [&](double printed, double target, double rounding, bool missed_when_above, const std::string& cell) {
+    if (std::abs(printed - target) > rounding) EXPECT_EQ(bold, missed_when_above ? printed > target : printed < target) << cell;
+  };
+  check(worst, 1.1, 0.0005, true, cells[1]);
+  const double want[3] = {2, 3, 5};
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_NE(cells[2 + k].find('x'), std::string::npos) << cells[2 + k];
+    const double x = value(cells[2 + k], &bold);
+    EXPECT_GT(x, 0.0);
+    check(x, want[k], 0.005, false, cells[2 + k]);
+  }
+  EXPECT_NE(cells[5].find(" ("), std::string::npos) << cells[5];  // psnr_db (psnr_ref_db)
+  const double db = value(cells[5], &bold);
+  EXPECT_GT(db, 5.0);
+  check(db, 28.0, 0.05, false, cells[5]);
+  EXPECT_EQ(cells[6], "-");  // no --scaling
+  EXPECT_NE(lines[3].find("| `--humans 4 --no-such-flag` | failed: "), std::string::npos) << lines[3];
+  EXPECT_NE(lines[3].find("no-such-flag"), std::string::npos) << lines[3];
+}
+
 TEST(FlowCli, TargetsAreCheckedWithTheGivenSettings) {
   std::string model = std::string(BB_SHARED_DATA_DIR) + "/gltf/RiggedSimple.gltf";
   if (!fs::exists(model)) GTEST_SKIP() << "../shared/data is absent";
