@@ -791,7 +791,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
 namespace {
 
 void add_flow_command(CLI::App& app, int* status) {
-  auto* cmd = app.add_subcommand("flow", "The paper's human flow test bed: humans walking in circles, geometry vs impostors");
+  auto* cmd = app.add_subcommand("flow", "The paper's human flow test bed: humans walking in circles, geometry vs impostors (what each option does, as measured: docs/flow.md)");
   auto a = std::make_shared<FlowArgs>();
   cmd->add_option("--model", a->models,
                   "Skinned glTF/GLB to use; repeat it for a crowd of several models, human i of the (i mod count)-th "
