@@ -737,6 +737,48 @@ TEST(FlowCli, AnimationHoldsEveryMeasuredFrameAndOutlinesTheRefreshes) {
 
 // --targets: the targets with the user's own settings, each from a run of its own, and
 // the table agrees with those runs.
+// Every long option `--help` lists is documented: flow's in docs/flow.md, the other commands' in the README
+// (-o,--output as -o; --help aside), so a new option cannot land undocumented.
+TEST(FlowCli, EveryOptionIsDocumented) {
+  auto read = [](const std::string& path) {
+    std::ifstream f(path);
+    return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  };
+  const std::string flow_md = read(std::string(BB_SOURCE_DIR) + "/docs/flow.md");
+  const std::string readme = read(std::string(BB_SOURCE_DIR) + "/README.md");
+  ASSERT_FALSE(flow_md.empty());
+  ASSERT_FALSE(readme.empty());
+  for (const std::string cmd : {"flow", "demo", "build", "inspect", "render", "mesh"}) {
+    Out o = run(cmd + " --help");
+    ASSERT_EQ(o.status, 0) << o.text;
+    const std::string& doc = cmd == "flow" ? flow_md : readme;
+    int options = 0;
+    for (std::size_t b = 0, e; b < o.text.size(); b = e + 1) {
+      e = o.text.find('\n', b);
+      if (e == std::string::npos) e = o.text.size();
+      const std::string line = o.text.substr(b, e - b);
+      // An option line: spaces, then -x,--name or --name.
+      const std::size_t first = line.find_first_not_of(' ');
+      if (first == std::string::npos || first == 0 || line.compare(first, 1, "-") != 0) continue;
+      const std::size_t dd = line.find("--", first);
+      if (dd == std::string::npos || dd > first + 3) continue;
+      const std::size_t end = line.find_first_not_of("abcdefghijklmnopqrstuvwxyz0123456789-", dd + 2);
+      const std::string name = line.substr(dd, end - dd);
+      ++options;
+      if (name == "--help" || name == "--output") continue;
+      // docs/flow.md gives each option a code span of its own; the README names them in the commands' synopses.
+      const std::string want = cmd == "flow" ? "`" + name : name;
+      bool found = false;
+      for (std::size_t at = doc.find(want); at != std::string::npos && !found; at = doc.find(want, at + 1)) {
+        const std::size_t after = at + want.size();
+        found = after >= doc.size() || std::string("abcdefghijklmnopqrstuvwxyz0123456789-").find(doc[after]) == std::string::npos;
+      }
+      EXPECT_TRUE(found) << cmd << " " << name << " is not in " << (cmd == "flow" ? "docs/flow.md" : "README.md");
+    }
+    EXPECT_GT(options, 1) << cmd << ": no options read from --help:\n" << o.text;
+  }
+}
+
 // bench/flow/targets_matrix.sh: a row per setting, each cell bold exactly where its target is missed,
 // and a setting the CLI refuses named with the CLI's reason.
 TEST(FlowCli, TargetsMatrixScriptMarksTheTargetsMissed) {
