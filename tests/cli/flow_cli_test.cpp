@@ -737,6 +737,31 @@ TEST(FlowCli, AnimationHoldsEveryMeasuredFrameAndOutlinesTheRefreshes) {
 
 // --targets: the targets with the user's own settings, each from a run of its own, and
 // the table agrees with those runs.
+// --impostor-parts on a model of few triangles a part (the Fox: 16 parts of 36) notes that part cards gain
+// little there; on CesiumMan (16 of 292) it does not.
+TEST(FlowCli, PartCardsOnFewTrianglesAPartAreNoted) {
+  const std::string dir = std::string(BB_SHARED_DATA_DIR) + "/gltf/";
+  if (!fs::exists(dir + "Fox.glb")) GTEST_SKIP() << "../shared/data is absent";
+  fs::path d = fs::temp_directory_path() / "bb_flow_part_note";
+  for (const std::string model : {"Fox.glb", "CesiumMan.glb"}) {
+    fs::remove_all(d);
+    Out o = run("flow --model " + dir + model + " --impostor-parts --frames 1 --humans 2 --size 320x256 --json -o " +
+                d.string());
+    if (o.text.find("EGL") != std::string::npos && o.status != 0) GTEST_SKIP() << "no headless OpenGL: " << o.text;
+    ASSERT_EQ(o.status, 0) << o.text;
+    const auto j = nlohmann::json::parse(last_json_line(o.text));
+    std::string notes = j.contains("model_notes") ? j["model_notes"].dump() : "";
+    if (model == "Fox.glb")
+      EXPECT_NE(notes.find("--impostor-parts: 16 body parts of 36 triangles each on average"), std::string::npos) << notes;
+    else
+      EXPECT_EQ(notes.find("--impostor-parts"), std::string::npos) << notes;
+  }
+  // Whole impostors: no such note.
+  Out o = run("flow --model " + dir + "Fox.glb --frames 1 --humans 2 --size 320x256 --json -o " + d.string());
+  ASSERT_EQ(o.status, 0) << o.text;
+  EXPECT_EQ(o.text.find("--impostor-parts:"), std::string::npos) << o.text;
+}
+
 // Every long option `--help` lists is documented: flow's in docs/flow.md, the other commands' in the README
 // (-o,--output as -o; --help aside), so a new option cannot land undocumented.
 TEST(FlowCli, EveryOptionIsDocumented) {
