@@ -368,36 +368,35 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     return fail("--snapshot-grid: expected auto, pixels or free (got \"" + a.snapshot_grid + "\")");
   if (a.snapshot_scale != "auto" && a.snapshot_scale != "fill" && a.snapshot_scale != "exact")
     return fail("--snapshot-scale: expected auto, fill or exact (got \"" + a.snapshot_scale + "\")");
-  // auto: exact for whole impostors (faster at every threshold, the same PSNR from posture 0.1 and
-  // 1 degree up), fill for part cards (small cards lose 1.2 dB at 8 degrees without the margin).
-  s.exact_scale = s.perspective_snapshots && (a.snapshot_scale == "exact" || (a.snapshot_scale == "auto" && !a.impostor_parts));
+  // The auto options take the runtime's tuned choices (bb/runtime/tuning.h, where each is measured):
+  // `tuned` holds what is decided so far, in the order those functions read it.
+  runtime::ImpostorConfig tuned;
+  tuned.part_cards = a.impostor_parts;
+  tuned.texels_per_pixel = a.texels_per_pixel;
+  tuned.perspective_snapshots = s.perspective_snapshots;
+  tuned.snapshot_samples = a.snapshot_samples;
+  runtime::TuningScene scene;
+  scene.samples = a.msaa;
+  scene.edges = edges_of(s.impostor_edges);
+  // auto: exact for whole impostors, fill for part cards.
+  s.exact_scale = s.perspective_snapshots && (a.snapshot_scale == "exact" || (a.snapshot_scale == "auto" && runtime::tuned_exact_scale(tuned)));
   if (a.snapshot_samples != 1 && a.snapshot_samples != 4)
     return fail("--snapshot-samples: expected 1 or 4 (got " + std::to_string(a.snapshot_samples) + ")");
   s.snapshot_samples = a.snapshot_samples;
   if (a.impostor_taps != "auto" && a.impostor_taps != "1" && a.impostor_taps != "2" && a.impostor_taps != "4")
     return fail("--impostor-taps: expected auto, 1, 2 or 4 (got \"" + a.impostor_taps + "\")");
-  // auto (ImpostorConfig::impostor_taps): one where --msaa 1 (no coverage to match); two for whole
-  // impostors at up to one texel per pixel (twenty-third session, 4x MSAA, 30 frames: the impostor
-  // frame 5-25 % shorter at 8 and 17 degrees, 0.03-0.17 dB lower); four for part cards (two lose
-  // 0.2-0.3 dB there and gain little time) and for finer windows (two taps 0.2 pixels out skip
-  // texels: -0.4 dB at 2).
-  // --snapshot-grid auto: texels on pixels for whole impostors with blended edges at one texel per
-  // pixel in a multisampled scene, with one tap on a grid 1/8 pixel off (ImpostorConfig::
-  // aligned_phase; fortieth session, flow test bed, 4x MSAA, alternated against two taps on the
-  // free grid: every impostor fresh 27.74 against 26.72 dB over the geometry's pixels at the same
-  // speed; the main run 9.8-10.0x against 9.3-9.5x for -0.11 dB, RiggedSimple orbiting at 17
-  // degrees 5.4x against 4.8-4.9x for -0.10 dB, the Fox at 8 degrees 7.2x against 6.1x for +0.02
-  // dB, 1,000 humans 28x against 25x for -0.03 dB); the free grid elsewhere.
-  const bool whole_blended = !a.impostor_parts && s.impostor_edges == "blend" && a.msaa > 1 &&
-                             a.texels_per_pixel == 1.0f && s.perspective_snapshots;
-  s.aligned_snapshots = a.snapshot_grid == "pixels" || (a.snapshot_grid == "auto" && whole_blended && a.snapshot_samples == 1);
-  if (a.impostor_taps != "auto") s.impostor_taps = std::stoi(a.impostor_taps);
-  else if (a.msaa == 1) s.impostor_taps = 1;
-  else if (s.aligned_snapshots && whole_blended) s.impostor_taps = 1;
-  else s.impostor_taps = !a.impostor_parts && a.texels_per_pixel <= 1.0f ? 2 : 4;
-  // The 1/8-pixel grid for one tap over single-sampled snapshots in a multisampled scene; texels on
-  // the pixels otherwise (exact with multisampled snapshots, or with one tap at one sample).
-  s.aligned_phase = s.aligned_snapshots && s.impostor_taps == 1 && a.msaa > 1 && a.snapshot_samples == 1 ? 0.125f : 0.0f;
+  // --snapshot-grid auto (runtime::tuned_aligned_snapshots): texels on pixels for whole impostors with
+  // blended edges at one texel per pixel in a multisampled scene, single-sampled snapshots; the free
+  // grid elsewhere. --impostor-taps auto (tuned_impostor_taps): one at one sample and on that grid, two
+  // for other whole impostors at up to one texel per pixel, four for part cards and finer windows.
+  // The phase (tuned_aligned_phase): 1/8 pixel for one tap over single-sampled snapshots on the grid
+  // of a multisampled scene; texels on the pixels otherwise (exact with multisampled snapshots, or
+  // with one tap at one sample).
+  tuned.aligned_snapshots = a.snapshot_grid == "pixels" || (a.snapshot_grid == "auto" && runtime::tuned_aligned_snapshots(tuned, scene));
+  s.aligned_snapshots = tuned.aligned_snapshots;
+  tuned.impostor_taps = a.impostor_taps != "auto" ? std::stoi(a.impostor_taps) : runtime::tuned_impostor_taps(tuned, scene);
+  s.impostor_taps = tuned.impostor_taps;
+  s.aligned_phase = runtime::tuned_aligned_phase(tuned, scene);
   if (a.quad_fit != "auto" && a.quad_fit != "boxes" && a.quad_fit != "coverage" && a.quad_fit != "vertices")
     return fail("--quad-fit: expected auto, boxes, coverage or vertices (got \"" + a.quad_fit + "\")");
   s.fit_quads = a.quad_fit != "boxes";

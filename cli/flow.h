@@ -19,6 +19,7 @@
 #include "bb/runtime/crowd.h"
 #include "bb/runtime/model.h"
 #include "bb/runtime/renderer.h"
+#include "bb/runtime/tuning.h"
 #include "bb/result.h"
 #include <nlohmann/json.hpp>
 
@@ -180,6 +181,9 @@ struct FlowResult {
 };
 
 // Runs the test bed on `model` (must have a current GL context). `device` names the GL renderer.
+// FlowSettings::impostor_edges ("blend", "coverage", "samples", "test" or "centre") as the renderer's mode.
+runtime::ImpostorEdges edges_of(const std::string& impostor_edges);
+
 Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& settings, const std::string& device);
 // The same with a crowd of several models: human i is of models[i % models.size()] (each model
 // with its own renderer and atlas, drawn into the same frame); the scene is scaled to the largest.

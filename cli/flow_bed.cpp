@@ -122,6 +122,15 @@ std::vector<glm::vec4> refreshed_boxes(std::span<const runtime::FramePlan* const
 
 }  // namespace
 
+runtime::ImpostorEdges edges_of(const std::string& impostor_edges) {
+  using runtime::ImpostorEdges;
+  return impostor_edges == "coverage"  ? ImpostorEdges::kAlphaToCoverage
+         : impostor_edges == "test"    ? ImpostorEdges::kAlphaTest
+         : impostor_edges == "samples" ? ImpostorEdges::kSamples
+         : impostor_edges == "centre"  ? ImpostorEdges::kCentre
+                                       : ImpostorEdges::kBlend;
+}
+
 Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& s, const std::string& device) {
   const runtime::Model* one[1] = {&model};
   return run_flow(std::span<const runtime::Model* const>(one), s, device);
@@ -173,19 +182,19 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   // the pass for their wide offsets and were slower with both (2.32x against 2.44-2.52x). On the H200
   // the fit's planning made the frames slower (20 humans 0.62-0.69x against 0.76x, part cards 0.22x
   // against 0.27-0.28x), so a GPU keeps the pass.
+  TuningScene scene;
+  scene.samples = s.msaa;
+  scene.software = software_rasterizer();
+  scene.edges = edges_of(s.impostor_edges);
   config.fit_quads_from_vertices =
-      s.fit_quads && (s.fit_from_vertices > 0 || (s.fit_from_vertices < 0 && !s.parallax_cards && software_rasterizer()));
+      s.fit_quads && (s.fit_from_vertices > 0 || (s.fit_from_vertices < 0 && tuned_fit_from_vertices(config, scene)));
   out.fit_from_vertices = config.fit_quads_from_vertices;
   config.coverage_group = s.coverage_group;
   config.planner_threads = s.planner_threads;
   DrawOptions draw_options;
   draw_options.time_stages = s.time_stages;
   draw_options.flush_every_indices = s.flush_every_indices;
-  draw_options.edges = s.impostor_edges == "coverage"  ? ImpostorEdges::kAlphaToCoverage
-                       : s.impostor_edges == "test"    ? ImpostorEdges::kAlphaTest
-                       : s.impostor_edges == "samples" ? ImpostorEdges::kSamples
-                       : s.impostor_edges == "centre"  ? ImpostorEdges::kCentre
-                                                       : ImpostorEdges::kBlend;
+  draw_options.edges = edges_of(s.impostor_edges);
   // Impostor frames hold impostors only, and blended edges need no multisampled target (auto on a
   // software rasterizer). A character drawn as geometry in an impostor frame in place of a
   // short-lived snapshot (below) needs the scene's samples to be the geometry path's own picture:
@@ -204,8 +213,9 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   // the same triangles take in the scene. On llvmpipe a 4x scene's single-sampled snapshot is the
   // cheaper (4x, --impostor-target scene, both thresholds 0: 0.63 of the geometry's time with
   // snapshots, 0.98-1.00 with geometry).
-  config.short_lived_as_geometry =
-      s.short_lived > 0 || (s.short_lived < 0 && (adaptive || (samples_i == s.msaa && (s.msaa == 1 || !software))));
+  scene.impostor_samples = samples_i;
+  scene.adaptive_target = adaptive;
+  config.short_lived_as_geometry = s.short_lived > 0 || (s.short_lived < 0 && tuned_short_lived_as_geometry(scene));
   out.short_lived_as_geometry = config.short_lived_as_geometry && s.refresh_budget == 0;
   // One renderer, planner and crowd per model; human i is of model i % models.size().
   std::vector<std::unique_ptr<Renderer>> renderers;

@@ -9,6 +9,9 @@
 //   bb::Result<rt::Model> model = rt::load_model("walker.glb");       // skinned glTF, MSFT_lod
 //   if (!model) { std::puts(model.error().message().c_str()); return; }  // "file: $.path: reason"
 //   rt::ImpostorConfig config;                    // windows 256 to 8 px, posture 40 %, view 8 deg
+//   config.texels_per_pixel = 1;                  // the test bed's (default 2: finer, slower)
+//   config = rt::tuned_config(config, {.samples = 4, .software = rt::software_rasterizer()});
+//                                                 // the test bed's measured choices for such a scene
 //   rt::Crowd crowd(*model);
 //   for (int i = 0; i < 1000; ++i)
 //     crowd.add({.position = {2.0f * (i % 40), 0, 2.0f * (i / 40)}, .yaw = 0.1f * i,
@@ -40,3 +43,4 @@
 #include "bb/runtime/impostor.h"
 #include "bb/runtime/model.h"
 #include "bb/runtime/renderer.h"
+#include "bb/runtime/tuning.h"

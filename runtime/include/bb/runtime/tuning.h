@@ -1,0 +1,77 @@
+// The impostor settings the flow test bed measured best for a kind of scene: what `bodybuilder flow`
+// takes for its auto options (docs/flow.md has each with its figures), for a game to start from.
+//
+//   rt::ImpostorConfig config = rt::tuned_config({}, {.samples = 4, .software = rt::software_rasterizer()});
+//
+// tuned_config sets the fields below from the scene and from what `base` already says of the
+// impostors (part_cards, texels_per_pixel, perspective_snapshots, snapshot_samples, parallax_cards,
+// fit_quads_to_coverage); every other field is `base`'s. Each tuned_* function decides one field, for
+// a caller that fixes some of them itself, and reads only the fields it names (in the order of
+// tuned_config: the grid, then the taps, then the phase). Pure functions: no GL call.
+#pragma once
+
+#include "bb/runtime/crowd.h"
+#include "bb/runtime/renderer.h"
+
+namespace bb::runtime {
+
+// The scene the impostors are drawn into.
+struct TuningScene {
+  int samples = 4;  // samples per pixel of the scene's target (1: single-sampled)
+  // A software rasterizer such as Mesa's llvmpipe (software_rasterizer() of the current context),
+  // where fill and multisampling cost far more against vertex work than on a GPU.
+  bool software = false;
+  ImpostorEdges edges = ImpostorEdges::kBlend;  // DrawOptions::edges
+  // The impostors' own target, where it is not the scene's (the flow test bed draws each path into
+  // a target of its own): its samples per pixel (0: the scene's, as for a game that draws impostors
+  // and geometry into one framebuffer), and whether it takes the scene's samples for a frame after
+  // one that drew a short-lived character as geometry (the test bed's adaptive target).
+  int impostor_samples = 0;
+  bool adaptive_target = false;
+};
+
+// Whole impostors with blended edges at one texel per pixel from perspective snapshots, in a
+// multisampled scene: where the pixel grid and one tap pay (reads part_cards, texels_per_pixel,
+// perspective_snapshots).
+bool tuned_whole_blended(const ImpostorConfig& c, const TuningScene& s);
+
+// ImpostorConfig::aligned_snapshots: snapshots cut out of the screen's image on its pixel grid, for
+// whole blended impostors (tuned_whole_blended) from single-sampled snapshots (snapshot_samples 1).
+// Fortieth session, 4x MSAA: every impostor fresh 27.74 against 26.72 dB over the geometry's pixels
+// (two taps on the free grid), the main run 9.8-10.0x against 9.3-9.5x for 0.11 dB less.
+bool tuned_aligned_snapshots(const ImpostorConfig& c, const TuningScene& s);
+
+// ImpostorConfig::impostor_taps, given c.aligned_snapshots: 1 in a single-sampled scene (no coverage
+// to match) and for whole blended impostors on the pixel grid; 2 for other whole impostors at up to
+// one texel per pixel (0.03-0.17 dB below four, the impostor frame 5-25 % shorter); 4 for part cards
+// and finer windows (where two lose 0.2-0.4 dB).
+int tuned_impostor_taps(const ImpostorConfig& c, const TuningScene& s);
+
+// ImpostorConfig::aligned_phase (pixels), given c.aligned_snapshots and c.impostor_taps: 1/8 for one
+// tap over single-sampled snapshots on the pixel grid of a multisampled scene (the tap's bilinear
+// weights then soften a fresh snapshot's edges about as the scene's four samples do); else 0.
+float tuned_aligned_phase(const ImpostorConfig& c, const TuningScene& s);
+
+// ImpostorConfig::texel_per_pixel (snapshots drawn at the texels per pixel asked, in part of their
+// window): for whole impostors from perspective snapshots (faster at every threshold, the same PSNR
+// from posture 0.1 and 1 degree up); part cards fill their windows (1.2 dB better at 8 degrees).
+bool tuned_exact_scale(const ImpostorConfig& c);
+
+// ImpostorConfig::fit_quads_from_vertices: with fit_quads_to_coverage, fit on the CPU from the
+// snapshot's vertices on a software rasterizer (where the coverage pass's barrier finishes the
+// frame's drawing so far: part cards at 8 degrees 11 % faster on llvmpipe), but not for
+// depth-corrected cards (parallax_cards), which need the pass; a GPU keeps the pass (the fit's
+// planning made the H200's frames 10-20 % slower).
+bool tuned_fit_from_vertices(const ImpostorConfig& c, const TuningScene& s);
+
+// ImpostorConfig::short_lived_as_geometry: where a character drawn as geometry in an impostor frame
+// is the geometry's own picture (the impostors' target has the scene's samples, or is adaptive) and a
+// snapshot costs what drawing the character does or more: in a single-sampled scene, and on a GPU
+// (the H200's worst case 0.45-0.65x of geometry's speed with snapshots, 0.95-1.03x with geometry). On
+// a software rasterizer a multisampled scene's single-sampled snapshot is the cheaper.
+bool tuned_short_lived_as_geometry(const TuningScene& s);
+
+// `base` with every field above tuned for `scene`.
+ImpostorConfig tuned_config(ImpostorConfig base, const TuningScene& scene);
+
+}  // namespace bb::runtime
