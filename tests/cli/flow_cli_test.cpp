@@ -838,7 +838,9 @@ TEST(FlowCli, TargetsMatrixScriptMarksTheTargetsMissed) {
   EXPECT_GT(worst, 0.0);
   // Bold from the unrounded figure: not checked where the printed one is within rounding of the target.
   auto check = [&](double printed, double target, double rounding, bool missed_when_above, const std::string& cell) {
-    if (std::abs(printed - target) > rounding) EXPECT_EQ(bold, missed_when_above ? printed > target : printed < target) << cell;
+    if (std::abs(printed - target) > rounding) {
+      EXPECT_EQ(bold, missed_when_above ? printed > target : printed < target) << cell;
+    }
   };
   check(worst, 1.1, 0.0005, true, cells[1]);
   const double want[3] = {2, 3, 5};
