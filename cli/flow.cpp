@@ -46,10 +46,6 @@ using nlohmann::ordered_json;
 
 
 
-// Below this many triangles a body part (at a model's finest level), `flow --impostor-parts` notes that
-// part cards gain little over geometry (see where it is used).
-constexpr std::size_t kFewTrianglesPerPart = 150;
-
 ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   ordered_json j;
   j["humans"] = r.humans;

@@ -181,6 +181,12 @@ struct FlowResult {
 };
 
 // Runs the test bed on `model` (must have a current GL context). `device` names the GL renderer.
+// Below this many triangles a body part (a model's finest level over its Model::body_parts), `flow
+// --impostor-parts` and `inspect` note that part cards gain little over geometry: a card (its quad and its
+// refreshes) costs about what drawing a few dozen triangles does (flow test bed, 8 degrees, posture off:
+// the Fox, 36 a part, 1.6x geometry's speed; RiggedSimple, 94, 2.8x; CesiumMan, 292, 6.5x).
+constexpr std::size_t kFewTrianglesPerPart = 150;
+
 // FlowSettings::impostor_edges ("blend", "coverage", "samples", "test" or "centre") as the renderer's mode.
 runtime::ImpostorEdges edges_of(const std::string& impostor_edges);
 

@@ -17,6 +17,7 @@
 #include "bb/mesher/mesh_check.h"
 #include "bb/runtime/animation.h"
 #include "bb/runtime/model.h"
+#include "flow.h"
 
 namespace bb::cli {
 
@@ -136,6 +137,27 @@ int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
       std::count_if(m.materials.begin(), m.materials.end(), [](const runtime::Material& mat) { return mat.alpha_blend; }));
   j["blend_materials"] = blended;  // alphaMode BLEND
   j["textures"] = m.textures.size();
+  // The body parts impostor part cards would carry (Model::body_parts): each part's bone, joints, share
+  // of the skin weight and triangles at the finest level (a part's own, and those it overlaps at its
+  // joints); under kFewTrianglesPerPart triangles a part on average (level 0's over the parts), the
+  // text says part cards gain little there, as flow --impostor-parts does.
+  nlohmann::ordered_json parts = nlohmann::ordered_json::array();
+  if (!m.lods.empty()) {
+    const runtime::PartIndices& pi = m.part_indices(0);
+    const std::size_t np = m.body_parts().size(), nprim = m.lods.front().primitives.size();
+    for (std::size_t p = 0; p < np; ++p) {
+      const runtime::BodyPart& bp = m.body_parts()[p];
+      std::size_t triangles = 0;
+      for (std::size_t k = 0; k < nprim && k * np + p < pi.ranges.size(); ++k) triangles += pi.ranges[k * np + p].count / 3;
+      const std::size_t node = static_cast<std::size_t>(m.palette[static_cast<std::size_t>(bp.bone)].node);
+      const std::string& name = m.nodes[node].name;
+      parts.push_back({{"bone", name.empty() ? "node " + std::to_string(node) : name},
+                       {"joints", bp.joints.size()},
+                       {"skin_share", bp.mass},
+                       {"triangles", triangles}});
+    }
+  }
+  j["body_parts"] = parts;
   if (as_json) {
     std::cout << j.dump() << "\n";
     return 0;
@@ -156,6 +178,14 @@ int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
     const float v = m.baked_clips()[k].ground_speed;
     std::printf("animation %s: %.3f s, %s\n", m.clips[k].name.c_str(), m.clips[k].duration,
                 v > 0.0f ? ("walks at " + fmt_speed(v, height)).c_str() : "does not walk");
+  }
+  if (parts.size() > 1) {
+    const std::size_t each = (m.lods.front().indices.size() / 3 + parts.size() / 2) / parts.size();
+    std::string names;
+    for (const auto& p : parts) names += (names.empty() ? "" : ", ") + p["bone"].get<std::string>();
+    std::printf("body parts (flow --impostor-parts): %zu, %zu triangles each on average at level 0%s: %s\n", parts.size(), each,
+                each < kFewTrianglesPerPart ? " (few: part cards gain little over geometry on this model)" : "",
+                names.c_str());
   }
   std::printf("skin: at most %d influences per vertex, weights %s\n", skin.max_influences,
               skin.weights_normalized ? "normalized" : "NOT normalized");

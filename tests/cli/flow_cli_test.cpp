@@ -760,6 +760,25 @@ TEST(FlowCli, PartCardsOnFewTrianglesAPartAreNoted) {
   Out o = run("flow --model " + dir + "Fox.glb --frames 1 --humans 2 --size 320x256 --json -o " + d.string());
   ASSERT_EQ(o.status, 0) << o.text;
   EXPECT_EQ(o.text.find("--impostor-parts:"), std::string::npos) << o.text;
+  // inspect lists the parts: the Fox's 16, their skin shares summing to one, and says they are few.
+  Out i = run("inspect " + dir + "Fox.glb --json");
+  ASSERT_EQ(i.status, 0) << i.text;
+  const auto parts = nlohmann::json::parse(i.text)["body_parts"];
+  ASSERT_EQ(parts.size(), 16u) << parts.dump();
+  double share = 0.0;
+  std::size_t triangles = 0;
+  for (const auto& p : parts) {
+    share += p["skin_share"].get<double>();
+    triangles += p["triangles"].get<std::size_t>();
+  }
+  EXPECT_NEAR(share, 1.0, 1e-4);
+  EXPECT_GE(triangles, 576u);  // every triangle in a part, those at the joints in two
+  Out t = run("inspect " + dir + "Fox.glb");
+  EXPECT_NE(t.text.find("body parts (flow --impostor-parts): 16, 36 triangles each on average at level 0 (few:"), std::string::npos)
+      << t.text;
+  Out c = run("inspect " + dir + "CesiumMan.glb");
+  EXPECT_NE(c.text.find("body parts (flow --impostor-parts): 16, 292 triangles each on average at level 0: "), std::string::npos)
+      << c.text;
 }
 
 // Every long option `--help` lists is documented: flow's in docs/flow.md, the other commands' in the README
