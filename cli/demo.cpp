@@ -438,7 +438,9 @@ int run_demo(const std::string& dir, int frames, bool full) {
        << "- refresh budget: `" << base << " --frames " << half << " --orbit 30 --humans " << kDemoBudgetHumans
        << "`, then with `--refresh-budget " << kDemoRefreshBudget << "`\n"
        << "- crowd sizes: `" << base << " --frames 2 --scaling --scaling-frames 3 --scaling-humans " << sc.scaling_list
-       << "`\n\n";
+       << "`\n"
+       << "- the targets with any model and settings: `bodybuilder flow --model M.glb [settings] --targets`; with "
+       << "settings the issue does not name, a row each: `bash bench/flow/targets_matrix.sh` (from the source tree)\n\n";
   }
   md << "\n## Where to look\n\n- `default.glb`: the built-in body's LOD set (open it in any glTF viewer); "
      << "`default_v1.glb` ...: the seeded variants that walk beside it\n"
