@@ -50,6 +50,9 @@ if gs and 'impostor' in gs:
     print(f"  gpu: geometry {gs['geometry']['geometry']:.3f} | impostor snapshots {gi['snapshots']:.3f} coverage {gi['coverage']:.3f} quads {gi['impostors']:.3f} | coverage_group {r.get('coverage_group')}")
 for s in r.get('sweep', []):
     print(line(s, "  %s" % s.get('threshold', s.get('view_deg', s.get('posture')))))
+for t in r.get('targets', []):
+    met = {True: 'yes', False: 'NO', None: '-'}[t.get('met')]
+    print(f"  target [{met}] {t['target'][:60]}: {t['measured']}")
 for s in r.get('scaling', []):
     sp = s.get('frame_ms_split', {})
     g, i = sp.get('geometry', {}), sp.get('impostor', {})
@@ -475,6 +478,21 @@ set_s40() {
     done
   done
   for g in auto free; do flow g40_${g}_sweep_view_h1000 $C4 --frames 40 --humans 1000 --sweep view --snapshot-grid $g; done
+}
+# Forty-first session (no GPU then): the targets under settings the issue does not name, as
+# bench/flow/targets_matrix.sh runs them on llvmpipe (docs/results.md), with the default crowd built
+# beforehand and the external models.
+set_s41() {
+  for x in "--size 640x480" "--size 1920x1080" "--humans 50" "--humans 200" "--msaa 8" "--orbit -20 --humans 40" \
+           "--orbit 90" "--msaa 1"; do
+    # shellcheck disable=SC2086  # a setting is a list of flags
+    flow "t41_crowd_$(echo $x | tr -c 'a-z0-9' '_')" $C4 --frames 30 --targets $x
+  done
+  flow t41_cesium_fox --model $M/CesiumMan.glb --model $M/Fox.glb --size 800x600 --frames 30 --targets
+  flow t41_fox_orbit45 --model $M/Fox.glb --humans 60 --orbit 45 --frames 30 --targets
+  flow t41_rs_orbit30 --model $M/RiggedSimple.gltf --size 640x480 --orbit 30 --frames 30 --targets
+  flow t41_parts_cesium --model $M/CesiumMan.glb --impostor-parts --frames 30 --targets
+  flow t41_cesium_10k --model $M/CesiumMan.glb --size 1600x900 --frames 30 --targets --scaling --scaling-humans 10000 --scaling-frames 3
 }
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
