@@ -482,19 +482,13 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
                   (names.empty() ? std::string("it has none") : "it has " + names) + ")");
     }
     std::vector<std::string> model_lines = model_notes(*m);
-    // Part cards on a model of few triangles a part: a card (its quad, its refreshes) costs about what
-    // drawing so few does (flow test bed, 8 degrees, posture off: SimpleSkin 4 triangles a part 0.68x
-    // geometry's speed, the Fox 36 1.6x, RiggedSimple 94 2.8x, CesiumMan 292 6.5x; whole impostors
-    // 1.0x / 7.5x / 4.7x / 19x).
-    if (a.impostor_parts && m->body_parts().size() > 1 && !m->lods.empty()) {
-      const std::size_t parts = m->body_parts().size(), triangles = m->lods.front().indices.size() / 3;
-      if (triangles < kFewTrianglesPerPart * parts)
-        model_lines.push_back("--impostor-parts: " + std::to_string(parts) + " body parts of " +
-                              std::to_string((triangles + parts / 2) / parts) +
-                              " triangles each on average at the finest level; a part card (its quad and its refreshes) "
-                              "costs about what drawing so few triangles does, so part cards gain little over geometry on "
-                              "this model, and whole impostors are the faster (docs/flow.md)");
-    }
+    // Part cards on a model of few triangles a part gain little (kFewTrianglesPerPart).
+    if (const std::size_t each = part_triangles(*m); a.impostor_parts && each > 0 && each < kFewTrianglesPerPart)
+      model_lines.push_back("--impostor-parts: " + std::to_string(m->body_parts().size()) + " body parts of " +
+                            std::to_string(each) +
+                            " triangles each on average at the finest level; a part card (its quad and its refreshes) "
+                            "costs about what drawing so few triangles does, so part cards gain little over geometry on "
+                            "this model, and whole impostors are the faster (docs/flow.md)");
     for (const std::string& n : model_lines) {
       if (!a.json) std::fprintf(stderr, "flow: note: %s: %s\n", path.c_str(), n.c_str());
       notes.push_back(path + ": " + n);

@@ -180,16 +180,21 @@ struct FlowResult {
   std::vector<FlowFrameImages> images;
 };
 
-// Runs the test bed on `model` (must have a current GL context). `device` names the GL renderer.
-// Below this many triangles a body part (a model's finest level over its Model::body_parts), `flow
-// --impostor-parts` and `inspect` note that part cards gain little over geometry: a card (its quad and its
-// refreshes) costs about what drawing a few dozen triangles does (flow test bed, 8 degrees, posture off:
-// the Fox, 36 a part, 1.6x geometry's speed; RiggedSimple, 94, 2.8x; CesiumMan, 292, 6.5x).
+// Below this many triangles a body part (part_triangles), `flow --impostor-parts` and `inspect` note that
+// part cards gain little over geometry: a card (its quad and its refreshes) costs about what drawing a few
+// dozen triangles does (flow test bed, 8 degrees, posture off: SimpleSkin, 4 a part, 0.68x geometry's
+// speed; the Fox, 36, 1.6x; RiggedSimple, 94, 2.8x; CesiumMan, 292, 6.5x; whole impostors 1.0x / 7.5x /
+// 4.7x / 19x).
 constexpr std::size_t kFewTrianglesPerPart = 150;
+
+// Triangles a body part on average: the finest level's over Model::body_parts, rounded; 0 for a model
+// of one part (whole impostors only) or no level.
+std::size_t part_triangles(const runtime::Model& m);
 
 // FlowSettings::impostor_edges ("blend", "coverage", "samples", "test" or "centre") as the renderer's mode.
 runtime::ImpostorEdges edges_of(const std::string& impostor_edges);
 
+// Runs the test bed on `model` (must have a current GL context). `device` names the GL renderer.
 Result<FlowResult> run_flow(const runtime::Model& model, const FlowSettings& settings, const std::string& device);
 // The same with a crowd of several models: human i is of models[i % models.size()] (each model
 // with its own renderer and atlas, drawn into the same frame); the scene is scaled to the largest.

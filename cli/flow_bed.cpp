@@ -122,6 +122,12 @@ std::vector<glm::vec4> refreshed_boxes(std::span<const runtime::FramePlan* const
 
 }  // namespace
 
+std::size_t part_triangles(const runtime::Model& m) {
+  const std::size_t parts = m.body_parts().size();
+  if (parts < 2 || m.lods.empty()) return 0;
+  return (m.lods.front().indices.size() / 3 + parts / 2) / parts;
+}
+
 runtime::ImpostorEdges edges_of(const std::string& impostor_edges) {
   using runtime::ImpostorEdges;
   return impostor_edges == "coverage"  ? ImpostorEdges::kAlphaToCoverage
@@ -182,9 +188,10 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   // the pass for their wide offsets and were slower with both (2.32x against 2.44-2.52x). On the H200
   // the fit's planning made the frames slower (20 humans 0.62-0.69x against 0.76x, part cards 0.22x
   // against 0.27-0.28x), so a GPU keeps the pass.
+  const bool software = software_rasterizer();
   TuningScene scene;
   scene.samples = s.msaa;
-  scene.software = software_rasterizer();
+  scene.software = software;
   scene.edges = edges_of(s.impostor_edges);
   config.fit_quads_from_vertices =
       s.fit_quads && (s.fit_from_vertices > 0 || (s.fit_from_vertices < 0 && tuned_fit_from_vertices(config, scene)));
@@ -200,7 +207,6 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   // short-lived snapshot (below) needs the scene's samples to be the geometry path's own picture:
   // adaptive (auto on a GPU) draws the impostor frame into a target of the scene's samples after a
   // frame that drew such a character, else into the single-sampled one.
-  const bool software = software_rasterizer();
   const int blend_samples = impostor_target_samples(draw_options.edges, s.msaa);
   const bool adaptive =
       blend_samples < s.msaa && (s.impostor_target_samples < 0 || (s.impostor_target_samples == 0 && !software));

@@ -139,8 +139,8 @@ int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
   j["textures"] = m.textures.size();
   // The body parts impostor part cards would carry (Model::body_parts): each part's bone, joints, share
   // of the skin weight and triangles at the finest level (a part's own, and those it overlaps at its
-  // joints); under kFewTrianglesPerPart triangles a part on average (level 0's over the parts), the
-  // text says part cards gain little there, as flow --impostor-parts does.
+  // joints); under kFewTrianglesPerPart triangles a part on average (part_triangles), the text says
+  // part cards gain little there, as flow --impostor-parts does.
   nlohmann::ordered_json parts = nlohmann::ordered_json::array();
   if (!m.lods.empty()) {
     const runtime::PartIndices& pi = m.part_indices(0);
@@ -179,8 +179,7 @@ int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
     std::printf("animation %s: %.3f s, %s\n", m.clips[k].name.c_str(), m.clips[k].duration,
                 v > 0.0f ? ("walks at " + fmt_speed(v, height)).c_str() : "does not walk");
   }
-  if (parts.size() > 1) {
-    const std::size_t each = (m.lods.front().indices.size() / 3 + parts.size() / 2) / parts.size();
+  if (const std::size_t each = part_triangles(m); each > 0) {
     std::string names;
     for (const auto& p : parts) names += (names.empty() ? "" : ", ") + p["bone"].get<std::string>();
     std::printf("body parts (flow --impostor-parts): %zu, %zu triangles each on average at level 0%s: %s\n", parts.size(), each,

@@ -23,6 +23,17 @@ namespace {
 using Out = bb::test::CliRun;
 Out run(const std::string& args) { return bb::test::run_cli(args); }
 
+// A command's output, line by line.
+std::vector<std::string> lines_of(const std::string& text) {
+  std::vector<std::string> lines;
+  for (std::size_t b = 0, e; b < text.size(); b = e + 1) {
+    e = text.find('\n', b);
+    if (e == std::string::npos) e = text.size();
+    lines.push_back(text.substr(b, e - b));
+  }
+  return lines;
+}
+
 std::string last_json_line(const std::string& text) {
   auto p = text.rfind("\n{");
   return p == std::string::npos ? text : text.substr(p + 1);
@@ -797,10 +808,7 @@ TEST(FlowCli, EveryOptionIsDocumented) {
     ASSERT_EQ(o.status, 0) << o.text;
     const std::string& doc = cmd == "flow" ? flow_md : readme;
     int options = 0;
-    for (std::size_t b = 0, e; b < o.text.size(); b = e + 1) {
-      e = o.text.find('\n', b);
-      if (e == std::string::npos) e = o.text.size();
-      const std::string line = o.text.substr(b, e - b);
+    for (const std::string& line : lines_of(o.text)) {
       // An option line: spaces, then -x,--name or --name.
       const std::size_t first = line.find_first_not_of(' ');
       if (first == std::string::npos || first == 0 || line.compare(first, 1, "-") != 0) continue;
@@ -830,12 +838,7 @@ TEST(FlowCli, TargetsMatrixScriptMarksTheTargetsMissed) {
   Out o = bb::test::run_command("BB=" + std::string(BB_BIN_DIR) + "/bodybuilder FRAMES=2 bash " + script +
                                 " '--humans 4 --size 320x256' '--humans 4 --no-such-flag'");
   ASSERT_EQ(o.status, 0) << o.text;
-  std::vector<std::string> lines;
-  for (std::size_t b = 0, e; b < o.text.size(); b = e + 1) {
-    e = o.text.find('\n', b);
-    if (e == std::string::npos) e = o.text.size();
-    lines.push_back(o.text.substr(b, e - b));
-  }
+  const std::vector<std::string> lines = lines_of(o.text);
   ASSERT_GE(lines.size(), 4u) << o.text;
   if (lines[2].find("failed") != std::string::npos && lines[2].find("EGL") != std::string::npos)
     GTEST_SKIP() << "no headless OpenGL: " << lines[2];

@@ -48,7 +48,8 @@ TEST(Tuning, TheGridTapsAndPhaseOfFlowsAutoOptions) {
   ImpostorConfig c = whole();
   c.aligned_snapshots = true;
   EXPECT_EQ(tuned_impostor_taps(c, x1), 1);
-  EXPECT_EQ(tuned_aligned_phase([&] { ImpostorConfig t = c; t.impostor_taps = 1; return t; }(), x1), 0.0f);  // one sample: on the pixels
+  c.impostor_taps = 1;
+  EXPECT_EQ(tuned_aligned_phase(c, x1), 0.0f);  // one sample: on the pixels
   c.impostor_taps = 2;
   EXPECT_EQ(tuned_aligned_phase(c, x4), 0.0f);  // two taps on the grid: on the pixels
   c.impostor_taps = 1;
