@@ -114,6 +114,11 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
     j["refresh_ahead"] = "off";
   }
   j["snapshot_frames"] = r.snapshot_frames;
+  if (s.view_lead > 0.0f) {
+    j["view_lead"] = s.view_lead;
+  } else {
+    j["view_lead"] = "off";
+  }
   if (s.part_cards) {
     j["impostor_parts"] = r.parts;
     j["part_cards_per_frame"] = r.part_cards;
@@ -360,6 +365,15 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (a.card_lead != "on" && a.card_lead != "off")
     return fail("--card-lead: expected on or off (got \"" + a.card_lead + "\")");
   s.lead_cards = a.card_lead == "on";
+  if (a.view_lead == "off") {
+    s.view_lead = 0.0f;
+  } else {
+    char* end = nullptr;
+    const float f = std::strtof(a.view_lead.c_str(), &end);
+    if (a.view_lead.empty() || *end != '\0' || !(f > 0.0f && f <= 1.0f))
+      return fail("--view-lead: expected a fraction of the view threshold above 0 and at most 1, or off (got \"" + a.view_lead + "\")");
+    s.view_lead = f;
+  }
   if (a.snapshot_grid != "auto" && a.snapshot_grid != "pixels" && a.snapshot_grid != "free")
     return fail("--snapshot-grid: expected auto, pixels or free (got \"" + a.snapshot_grid + "\")");
   if (a.snapshot_scale != "auto" && a.snapshot_scale != "fill" && a.snapshot_scale != "exact")
@@ -862,6 +876,9 @@ void add_flow_command(CLI::App& app, int* status) {
       ->capture_default_str();
   cmd->add_option("--card-lead", a->card_lead,
                   "With --impostor-parts: each card's snapshot is taken along its part's mean line of sight over the card's coming life (the clip played on)")
+      ->capture_default_str();
+  cmd->add_option("--view-lead", a->view_lead,
+                  "Whole impostors: each snapshot is taken from the eye turned ahead, the way it has been turning, by this fraction of the view threshold (0-1; the view test still measures from the snapshot's own view), or off")
       ->capture_default_str();
   cmd->add_option("--snapshot-grid", a->snapshot_grid,
                   "Snapshot texels: pixels (on the screen's pixel grid when taken: exact with --snapshot-samples 4 or at --msaa 1; 1/8 pixel off it with one tap in a multisampled scene), free (section 4.2's camera) or auto (pixels for whole impostors with blended edges at one texel per pixel in a multisampled scene, taking one tap; free elsewhere)")

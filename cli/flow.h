@@ -77,6 +77,7 @@ struct FlowSettings {
   bool relight = false;                     // ImpostorConfig::relight (impostors lit as drawn)
   bool parallax_depth_pass = false;         // ImpostorConfig::parallax_depth_pass
   bool lead_cards = true;                   // ImpostorConfig::lead_cards
+  float view_lead = 0.0f;                   // ImpostorConfig::view_lead (0: off)
   bool aligned_snapshots = false;           // ImpostorConfig::aligned_snapshots (texels on pixels)
   float aligned_phase = 0.0f;               // ImpostorConfig::aligned_phase (pixels)
   bool exact_scale = false;                 // ImpostorConfig::texel_per_pixel (the asked texels per pixel, not the window's)
@@ -229,6 +230,7 @@ struct FlowArgs {
   std::string card_depth = "off";
   std::string relight = "off";
   std::string card_lead = "on";
+  std::string view_lead = "off";  // --view-lead: a fraction of the view threshold in (0, 1], or off
   std::string snapshot_grid = "auto";
   std::string snapshot_scale = "auto";
   int snapshot_samples = 1;

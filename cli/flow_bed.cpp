@@ -174,6 +174,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   config.relight = s.relight;
   config.parallax_depth_pass = s.parallax_depth_pass;
   config.lead_cards = s.lead_cards;
+  config.view_lead = s.view_lead;
   config.aligned_snapshots = s.aligned_snapshots;
   config.aligned_phase = s.aligned_phase;
   config.texel_per_pixel = s.exact_scale;

@@ -377,6 +377,7 @@ void add_stats(FrameStats& a, const FrameStats& b) {
   a.new_snapshots += b.new_snapshots;
   a.deferred_refreshes += b.deferred_refreshes;
   a.short_lived_geometry += b.short_lived_geometry;
+  a.lead_snapshots += b.lead_snapshots;
   for (std::size_t k = 0; k < a.geometry_per_lod.size(); ++k) a.geometry_per_lod[k] += b.geometry_per_lod[k];
   for (std::size_t k = 0; k < a.impostors_per_window.size(); ++k) a.impostors_per_window[k] += b.impostors_per_window[k];
   a.geometry_triangles += b.geometry_triangles;
@@ -546,13 +547,41 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
       }
     }
     if (!as_geometry) {
-      SnapshotCamera sc = make_snapshot_camera(ta, camera.eye, camera.up, radius,
-                                                     config_.snapshot_distance > 0 ? config_.snapshot_distance * ch.scale : 0.0f,
-                                                     config_.perspective_snapshots);
-      if (config_.texel_per_pixel && sc.perspective)
-        sc.half_size = std::max(sc.half_size, half_size_at(config_.windows.size[wclass], config_.texels_per_pixel, sc.distance, ppm1));
+      auto snapshot_camera = [&](const glm::vec3& eye, const glm::vec3& up) {
+        SnapshotCamera c = make_snapshot_camera(ta, eye, up, radius,
+                                                config_.snapshot_distance > 0 ? config_.snapshot_distance * ch.scale : 0.0f,
+                                                config_.perspective_snapshots);
+        if (config_.texel_per_pixel && c.perspective)
+          c.half_size = std::max(c.half_size, half_size_at(config_.windows.size[wclass], config_.texels_per_pixel, c.distance, ppm1));
+        return c;
+      };
+      SnapshotCamera sc = snapshot_camera(camera.eye, camera.up);
       // The view test's frame is section 4.2's (the line of sight to Ta) in either case.
       const glm::mat3 view = view_rotation(sc, ch.yaw);
+      // Leading whole impostors (ImpostorConfig::view_lead): how fast the eye goes round Ta's
+      // vertical in the character's frame (radians of azimuth per second, from the previous planned
+      // frame). The view test's frame turns about the vertical by as much (the angle the test
+      // measures). A turn about the vertical keeps the picture upright; a turn about the line of
+      // sight's own axis of motion would roll it (camera 25 degrees above, 4 degrees ahead: about
+      // 1.7 degrees).
+      float lead_azimuth_rate = 0.0f, lead_rate = 0.0f;
+      if (config_.view_lead > 0.0f && cc.view_test) {
+        const glm::vec3 e = glm::vec3(cy * (camera.eye.x - ta.x) - sy * (camera.eye.z - ta.z), camera.eye.y - ta.y,
+                                      sy * (camera.eye.x - ta.x) + cy * (camera.eye.z - ta.z));
+        if (time != cs.eye_time || !cs.eye_valid) {  // planned again in the same frame (a budget): kept
+          const bool later = cs.eye_valid && time > cs.eye_time;
+          cs.eye_vel = later ? (e - cs.eye_char) / (time - cs.eye_time) : glm::vec3(0.0f);
+          cs.eye_step = later ? time - cs.eye_time : 0.0f;
+          cs.eye_char = e;
+          cs.eye_time = time;
+          cs.eye_valid = true;
+        }
+        const float h2 = e.x * e.x + e.z * e.z;
+        if (h2 > 0.01f * glm::dot(e, e)) {  // not from (nearly) overhead, where the azimuth spins
+          lead_azimuth_rate = (e.z * cs.eye_vel.x - e.x * cs.eye_vel.z) / h2;
+          lead_rate = std::abs(lead_azimuth_rate);
+        }
+      }
 
       // Posture distances of the current frame (squared, model space, scaled).
       const std::array<float, 4> posture = posture_at(bc, f0, f1, blend);
@@ -570,7 +599,10 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
             refresh = true;
             ++st.view_refreshes;
             if (budget) staleness = std::acos(std::clamp(c, -1.0f, 1.0f)) / std::max(thr, 1e-6f);
-          } else if (fs.ahead && thr > 0.0f && c < (w == 1.0f ? fs.cos_ahead : std::cos(thr * cc.ahead_fraction))) {
+          } else if (fs.ahead && thr > 0.0f && !cs.led &&
+                     c < (w == 1.0f ? fs.cos_ahead : std::cos(thr * cc.ahead_fraction))) {
+            // (A leading snapshot starts off its view: how far it is from it says nothing of
+            // how long it has left, so only its posture may refresh it ahead.)
             ahead = std::acos(std::clamp(c, -1.0f, 1.0f)) / thr;
           }
         }
@@ -596,6 +628,7 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
         // slower: flow test bed, --msaa 1, posture 0.1, 40 frames, impostor frame 5.06-5.10 ms
         // without, 5.98 ms with, 5.25-5.28 ms with every refresh a snapshot.
         cs.view = view;
+        cs.led = false;
         cs.posture = posture;
         cs.taken = fs.frame;
         cs.picture_behind = true;
@@ -612,20 +645,48 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
         out.pending->push_back(PendingRefresh{staleness, static_cast<std::uint32_t>(i),
                                               static_cast<std::uint32_t>(out.billboards->size())});
       } else if (refresh) {
+        // The camera the snapshot is taken with: the scene's, or with a lead the scene's turned
+        // rigidly about Ta's vertical by the lead (Ta keeps its pixel, its distance and its depth).
+        SceneCamera shot = camera;
+        glm::vec3 shot_right = cam_right, shot_up = cam_up;
+        glm::mat3 shot_view = view;
+        float lead_angle = 0.0f;
+        if (lead_rate > 0.0f) {
+          const float thr = std::min(glm::radians(cc.view_threshold_deg) *
+                                         distance_weight(cc, glm::distance(ta, camera.eye), pixels), 3.14159265f);
+          // The line of sight's lead, at most two frames' turn short of the threshold: a lead of
+          // the whole threshold would be due again at once wherever the turn is not quite as
+          // foreseen (flow test bed, 8 degrees, view_lead 1 without this: refreshed every other
+          // frame).
+          lead_angle = std::min({config_.view_lead * thr, thr - 2.0f * lead_rate * cs.eye_step, lead_rate * kLeadTimeMax});
+        }
+        if (lead_angle > 0.0f) {  // as a turn of the azimuth about Ta's vertical
+          const float azimuth = std::copysign(lead_angle, lead_azimuth_rate);
+          const glm::mat3 turn = glm::mat3(glm::rotate(glm::mat4(1.0f), azimuth, glm::vec3(0.0f, 1.0f, 0.0f)));
+          shot.eye = ta + turn * (camera.eye - ta);
+          shot.target = ta + turn * (camera.target - ta);
+          shot.up = turn * camera.up;
+          shot_right = turn * cam_right;
+          shot_up = turn * cam_up;
+          sc = snapshot_camera(shot.eye, shot.up);
+          shot_view = view_rotation(sc, ch.yaw);
+          ++st.lead_snapshots;
+        }
         std::optional<SnapshotCamera> aligned;
         if (config_.aligned_snapshots)
-          aligned = make_aligned_snapshot_camera(camera, ta, radius, win.size, config_.texels_per_pixel, config_.aligned_phase);
+          aligned = make_aligned_snapshot_camera(shot, ta, radius, win.size, config_.texels_per_pixel, config_.aligned_phase);
         if (aligned) sc = *aligned;
         CacheState next = cs;
         next.valid = true;
-        next.view = view;
+        next.view = shot_view;
+        next.led = lead_angle > 0.0f;
         next.posture = posture;
         next.half_size = sc.half_size;
         next.aligned = aligned.has_value();
         next.fitted = fit_quad(cs.valid && !cs.picture_behind ? cs.taken : 0, fs.frame);
         next.picture_behind = false;
         next.taken = fs.frame;
-        next.offset = glm::vec2(glm::dot(sc.ta - ta, cam_right), glm::dot(sc.ta - ta, cam_up));
+        next.offset = glm::vec2(glm::dot(sc.ta - ta, shot_right), glm::dot(sc.ta - ta, shot_up));
         next.rect = glm::vec4(-1, -1, 1, 1);
         glm::vec4 snap_rect = next.rect;
         if (config_.tight_quads) {

@@ -572,6 +572,77 @@ TEST(FramePlanner, ViewThresholdZeroRefreshesAnyTurn) {
   }
 }
 
+// Leading whole impostors (ImpostorConfig::view_lead): a character turning on the spot at 45
+// degrees a second (1.5 degrees a frame at 30 frames a second) before a still camera, view test at
+// 8 degrees. Without a lead the snapshot's view trails the eye by 0 to 7.5 degrees and is taken
+// anew every sixth frame; with a lead of half the threshold it is taken 4 degrees ahead, so the
+// eye passes through it and it lasts 13 degrees of turn; with a lead of the whole threshold (two
+// frames' turn short of it: 5 degrees) 14. No snapshot is ever seen further off than the
+// threshold plus a frame's turn, the first snapshot (no turn seen yet) and a still character
+// take none.
+TEST(FramePlanner, LeadingWholeImpostorsAreSeenFromBothSides) {
+  Model m = tiny_model();
+  Crowd crowd(m);
+  crowd.add(Character{glm::vec3(0, 0, 0), 0.0f, 1.0f, 0, 0.0f, 0.0f});  // the pose held
+  const SceneCamera cam = facing_camera(30.0f);
+  const float leads[3] = {0.0f, 0.5f, 1.0f};
+  int snapshots[3] = {0, 0, 0}, led[3] = {0, 0, 0};
+  double mean[3] = {0, 0, 0}, most[3] = {0, 0, 0};
+  const int frames = 60;
+  for (int k = 0; k < 3; ++k) {
+    ImpostorConfig cfg = view_test_only(8.0f);
+    cfg.view_lead = leads[k];
+    FramePlanner planner(m, cfg);
+    float snap_azimuth = 0.0f;  // of the snapshot's eye about the character, in its frame (degrees)
+    for (int f = 0; f < frames; ++f) {
+      crowd[0].yaw = glm::radians(1.5f * static_cast<float>(f));
+      const FramePlan& p = planner.plan(crowd, cam, static_cast<float>(f) / 30.0f, RenderMode::kImpostor);
+      ASSERT_EQ(p.stats.impostors, 1);
+      if (f == 0) EXPECT_EQ(p.stats.lead_snapshots, 0);  // no turn seen yet
+      led[k] += p.stats.lead_snapshots;
+      // The eye's azimuth in the character's frame: the eye stands at +Z, the character turns by
+      // +yaw, so the eye goes round it by -yaw.
+      const float eye_azimuth = -1.5f * static_cast<float>(f);
+      if (p.stats.snapshots > 0) {
+        if (f > 0) ++snapshots[k];
+        ASSERT_EQ(p.snapshots.size(), 1u);
+        ASSERT_EQ(p.snapshots[0].size(), 1u);
+        // Vo runs from the snapshot's eye to Ta: the eye lies along -Vo, here in world; in the
+        // character's frame turned back by the yaw.
+        const glm::vec3 vo(p.snapshots[0][0].vo);
+        snap_azimuth = glm::degrees(std::atan2(-vo.x, -vo.z)) - glm::degrees(crowd[0].yaw);
+        // Ahead of the eye along its way round (towards smaller azimuths), by the lead.
+        const float ahead = eye_azimuth - snap_azimuth;
+        if (f > 0) {
+          const float want = leads[k] == 0.0f ? 0.0f : std::min(8.0f * leads[k], 8.0f - 2.0f * 1.5f);
+          EXPECT_NEAR(ahead, want, 0.05f) << "lead " << leads[k] << " frame " << f;
+        }
+      }
+      const double off = std::abs(eye_azimuth - snap_azimuth);
+      mean[k] += off / frames;
+      most[k] = std::max(most[k], off);
+    }
+  }
+  EXPECT_EQ(led[0], 0);
+  EXPECT_EQ(led[1], snapshots[1]);
+  EXPECT_EQ(snapshots[0], 9);  // past 8 degrees at 9: every sixth frame
+  EXPECT_LT(snapshots[1], snapshots[0]);
+  EXPECT_LE(snapshots[2], snapshots[1]);
+  EXPECT_LE(static_cast<double>(snapshots[2]), 0.7 * snapshots[0]);
+  for (int k = 0; k < 3; ++k) EXPECT_LE(most[k], 8.0 + 1.5 + 1e-3) << "lead " << leads[k];
+  EXPECT_LT(mean[1], mean[0]);  // seen from both sides: nearer on average, for fewer snapshots
+  // A still character before a still camera: nothing to lead by.
+  ImpostorConfig cfg = view_test_only(8.0f);
+  cfg.view_lead = 1.0f;
+  FramePlanner still(m, cfg);
+  crowd[0].yaw = 0.0f;
+  for (int f = 0; f < 5; ++f) {
+    const FramePlan& p = still.plan(crowd, cam, static_cast<float>(f) / 30.0f, RenderMode::kImpostor);
+    EXPECT_EQ(p.stats.lead_snapshots, 0);
+    EXPECT_EQ(p.stats.snapshots, f == 0 ? 1 : 0);
+  }
+}
+
 // Crowds of FramePlanner::kParallelCharacters and more are planned on a pool of threads; the
 // plan must not depend on how many: same draws, same order, same counts, frame after frame, while
 // characters animate, turn, change window size (the camera comes closer) and wait on a budget.
