@@ -1029,6 +1029,7 @@ void FramePlanner::refresh_listed(const std::vector<PendingRefresh>& list, std::
     k.join_snapshots(plan_.snapshots);
     st.quad_texels += k.st.quad_texels;
     st.snapshots += k.st.snapshots;
+    st.lead_snapshots += k.st.lead_snapshots;
     st.snapshot_triangles += k.st.snapshot_triangles;
   }
 }

@@ -658,9 +658,11 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
   // 200: the budget's refreshes planned on several threads too; -1: no budget, short-lived
   // snapshots drawn as geometry (a view threshold of 3 degrees, which most turning characters pass
   // every frame); -2: refreshes ahead (fraction 0.5, up to 30 a frame; their budget interplay is
-  // RefreshAheadGathersRefreshesIntoFramesThatTakeSnapshots's).
+  // RefreshAheadGathersRefreshesIntoFramesThatTakeSnapshots's). With the budget of 40 the
+  // snapshots lead the eye (ImpostorConfig::view_lead), those the budget reaches too.
   for (int budget : {0, 40, 200, -1, -2}) {
     ImpostorConfig cfg;
+    cfg.view_lead = budget == 40 ? 0.5f : 0.0f;
     cfg.cache.refresh_budget = std::max(budget, 0);
     cfg.short_lived_as_geometry = budget == -1;
     if (budget == -1) cfg.cache.view_threshold_deg = 3.0f;
@@ -674,7 +676,7 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
       cfg.planner_threads = threads;
       planners.emplace_back(m, cfg);
     }
-    int changes = 0, deferred = 0, served = 0, most = 0, short_lived = 0, ahead = 0;
+    int changes = 0, deferred = 0, served = 0, most = 0, short_lived = 0, ahead = 0, led = 0, led_served = 0;
     for (int f = 0; f < 12; ++f) {
       // The camera comes closer for four frames (windows change size), then stays (the budget
       // then serves stale impostors).
@@ -690,6 +692,8 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
       if (ref.stats.deferred_refreshes > 0) most = std::max(most, ref.stats.snapshots);
       short_lived += ref.stats.short_lived_geometry;
       ahead += ref.stats.ahead_refreshes;
+      led += ref.stats.lead_snapshots;
+      if (f > 4 && ref.stats.deferred_refreshes > 0) led_served += ref.stats.lead_snapshots;
       for (std::size_t k = 1; k < planners.size(); ++k) {
         SCOPED_TRACE(testing::Message() << "budget " << budget << ", frame " << f << ", planner " << k);
         const FramePlan& p = planners[k].plan(crowd, cam, t, RenderMode::kAuto);
@@ -697,6 +701,7 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
         EXPECT_EQ(p.stats.impostors_per_window, ref.stats.impostors_per_window);
         EXPECT_EQ(p.stats.atlas_windows_used, ref.stats.atlas_windows_used);
         EXPECT_EQ(p.stats.short_lived_geometry, ref.stats.short_lived_geometry);
+        EXPECT_EQ(p.stats.lead_snapshots, ref.stats.lead_snapshots);
         EXPECT_EQ(p.stats.geometry, ref.stats.geometry);
       }
       EXPECT_EQ(ref.stats.impostors + ref.stats.geometry + ref.stats.culled, n);
@@ -709,6 +714,8 @@ TEST(FramePlanner, PlanIsTheSameWhateverTheThreads) {
     }
     EXPECT_EQ(short_lived > 0, budget == -1);
     EXPECT_EQ(ahead > 0, budget == -2);
+    EXPECT_EQ(led > 0, budget == 40);
+    EXPECT_EQ(led_served > 0, budget == 40);  // led where the budget reached them
     if (budget >= 200) {  // a frame whose budget-reached refreshes took several threads
       EXPECT_GE(most, 2 * static_cast<int>(FramePlanner::kForcedPerThread));
     }
