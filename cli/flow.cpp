@@ -878,7 +878,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "With --impostor-parts: each card's snapshot is taken along its part's mean line of sight over the card's coming life (the clip played on)")
       ->capture_default_str();
   cmd->add_option("--view-lead", a->view_lead,
-                  "Whole impostors: each snapshot is taken from the eye turned ahead, the way it has been turning, by this fraction of the view threshold (0-1; the view test still measures from the snapshot's own view), or off")
+                  "Whole impostors (part cards have --card-lead): each snapshot is taken from the eye turned ahead about the character's vertical, the way it has been going round it, by this fraction of the view threshold (0-1; the view test still measures from the snapshot's own view, so nothing is shown further off than the threshold), or off")
       ->capture_default_str();
   cmd->add_option("--snapshot-grid", a->snapshot_grid,
                   "Snapshot texels: pixels (on the screen's pixel grid when taken: exact with --snapshot-samples 4 or at --msaa 1; 1/8 pixel off it with one tap in a multisampled scene), free (section 4.2's camera) or auto (pixels for whole impostors with blended edges at one texel per pixel in a multisampled scene, taking one tap; free elsewhere)")
