@@ -494,6 +494,18 @@ set_s41() {
   flow t41_parts_cesium --model $M/CesiumMan.glb --impostor-parts --frames 30 --targets
   flow t41_cesium_10k --model $M/CesiumMan.glb --size 1600x900 --frames 30 --targets --scaling --scaling-humans 10000 --scaling-frames 3
 }
+# Forty-second session (no GPU then): leading whole impostors (--view-lead) against none,
+# alternated, where the view is the error (poses held) and with a fast-turning camera around cheap
+# models, where a GPU pays a snapshot pass's fixed costs more than llvmpipe does.
+set_s42() {
+  for i in 1 2; do
+    for l in off 0.5; do
+      flow l42_${l}_held_$i $C4 --frames 60 --posture off --view 8 --hold-poses --view-lead $l
+      flow l42_${l}_main_h1000_$i $C4 --frames 40 --humans 1000 --view-lead $l
+      flow l42_${l}_fox_orbit90_$i --model $M/Fox.glb --frames 60 --orbit 90 --posture off --view 17 --view-lead $l
+    done
+  done
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"
