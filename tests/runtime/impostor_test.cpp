@@ -578,8 +578,8 @@ TEST(FramePlanner, ViewThresholdZeroRefreshesAnyTurn) {
 // anew every sixth frame; with a lead of half the threshold it is taken 4 degrees ahead, so the
 // eye passes through it and it lasts 13 degrees of turn; with a lead of the whole threshold (two
 // frames' turn short of it: 5 degrees) 14. No snapshot is ever seen further off than the
-// threshold plus a frame's turn, the first snapshot (no turn seen yet) and a still character
-// take none.
+// threshold plus a frame's turn, aligned snapshots stay on the screen's grid, and the first
+// snapshot (no turn seen yet) and a still character take none.
 TEST(FramePlanner, LeadingWholeImpostorsAreSeenFromBothSides) {
   Model m = tiny_model();
   Crowd crowd(m);
@@ -631,6 +631,40 @@ TEST(FramePlanner, LeadingWholeImpostorsAreSeenFromBothSides) {
   EXPECT_LE(static_cast<double>(snapshots[2]), 0.7 * snapshots[0]);
   for (int k = 0; k < 3; ++k) EXPECT_LE(most[k], 8.0 + 1.5 + 1e-3) << "lead " << leads[k];
   EXPECT_LT(mean[1], mean[0]);  // seen from both sides: nearer on average, for fewer snapshots
+  // On the screen's pixel grid (aligned snapshots, 1/8 pixel off): the camera turned about Ta's
+  // vertical keeps Ta on its pixel, so a leading impostor's quad still has its window's centre
+  // 1/8 pixel right of and above a pixel corner, its axes the screen's, and its picture's scale.
+  {
+    ImpostorConfig cfg = view_test_only(8.0f);
+    cfg.view_lead = 0.5f;
+    cfg.aligned_snapshots = true;
+    cfg.aligned_phase = 0.125f;
+    cfg.texel_per_pixel = true;  // the flow test bed's whole impostors (tuned_config)
+    cfg.texels_per_pixel = 1.0f;
+    FramePlanner planner(m, cfg);
+    const glm::mat4 screen = cam.projection() * cam.view();
+    int checked = 0;
+    float half_size = 0.0f;
+    for (int f = 0; f < frames; ++f) {
+      crowd[0].yaw = glm::radians(1.5f * static_cast<float>(f));
+      const FramePlan& p = planner.plan(crowd, cam, static_cast<float>(f) / 30.0f, RenderMode::kImpostor);
+      ASSERT_EQ(p.billboards.size(), 1u);
+      const BillboardGpu& b = p.billboards[0];
+      if (f == 0) {
+        half_size = b.ta_half.w;
+        EXPECT_EQ(b.axis_x.w, 1.0f);  // aligned without a lead
+      }
+      if (p.stats.lead_snapshots == 0) continue;
+      ++checked;
+      EXPECT_EQ(b.axis_x.w, 1.0f);  // drawn parallel to the screen
+      EXPECT_NEAR(b.ta_half.w, half_size, 1e-4f * half_size);
+      const glm::vec4 c = screen * glm::vec4(glm::vec3(b.ta_half), 1.0f);
+      const glm::vec2 px = (glm::vec2(c) / c.w * 0.5f + 0.5f) * glm::vec2(cam.width, cam.height);
+      EXPECT_NEAR(px.x - std::floor(px.x), 0.125f, 2e-3f) << "frame " << f;
+      EXPECT_NEAR(px.y - std::floor(px.y), 0.125f, 2e-3f) << "frame " << f;
+    }
+    EXPECT_GE(checked, 5);
+  }
   // A still character before a still camera: nothing to lead by.
   ImpostorConfig cfg = view_test_only(8.0f);
   cfg.view_lead = 1.0f;
