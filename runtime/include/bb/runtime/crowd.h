@@ -277,18 +277,19 @@ struct ImpostorConfig {
   bool lead_cards = true;
   // Leading whole impostors: a whole impostor's snapshot is taken from the eye turned ahead about
   // Ta's vertical, the way the eye has been going round the character (in its frame: the camera's
-  // motion and the character's own turns, from the previous planned frame), so that its line of
-  // sight leads by view_lead times the view threshold (radians, at most the turn of kLeadTimeMax
-  // seconds, and two frames' turn short of the threshold). The view test then measures the turn from the snapshot's own view, as without a
-  // lead, so no impostor is shown further off than the threshold; the eye passes through the
-  // snapshot's view during its life, which lasts (1 + view_lead) times the turn it lasted without.
-  // 0: off; in (0, 1]. The scene's camera turned rigidly about Ta's vertical takes it (Ta keeps
-  // its pixel, distance and depth: aligned snapshots stay on the screen's grid). Not for part
-  // cards (lead_cards). The light stays where it is: the picture is lit as the character stands
-  // now. Flow test bed (forty-second session, docs/results.md): poses held,
-  // posture off, 8 degrees, 0.5: 20.3 -> 20.7 dB with 25 % fewer refreshes (a larger threshold
-  // with the same refreshes, 10-12 degrees: 19.3-18.4 dB); walking, the posture test at 0.4: the
-  // same speed and image as the threshold that refreshes as often, so off by default.
+  // motion and the character's own turns, from the previous planned frame), by view_lead times the
+  // view threshold (the view frame's turn; at most the turn of kLeadTimeMax seconds, and two
+  // frames' turn short of the threshold). The view test then measures the turn from the
+  // snapshot's own view, as without a lead, so no impostor is shown further off than the
+  // threshold; the eye passes through the snapshot's view during its life, which lasts
+  // (1 + view_lead) times the turn it lasted without. 0: off; in (0, 1]. The scene's camera turned
+  // rigidly about Ta's vertical takes it (Ta keeps its pixel, distance and depth: aligned
+  // snapshots stay on the screen's grid). Not for part cards (lead_cards). The light stays where
+  // it is: the picture is lit as the character stands now. Flow test bed (forty-second session,
+  // docs/results.md), poses held, posture off, 8 degrees, 0.5: 20.3 -> 20.7 dB with 25 % fewer
+  // refreshes (a larger threshold with about as few, 10-12 degrees: 19.3-18.4 dB); walking, the
+  // posture test at 0.4: the speed and image of the threshold that refreshes as often, so off by
+  // default.
   float view_lead = 0.0f;
   // Short-lived snapshots drawn as geometry. A refresh draws the character into its window (what
   // drawing it on screen costs), clears the window and draws its quad, so a snapshot that is drawn
