@@ -558,40 +558,30 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
       SnapshotCamera sc = snapshot_camera(camera.eye, camera.up);
       // The view test's frame is section 4.2's (the line of sight to Ta) in either case.
       const glm::mat3 view = view_rotation(sc, ch.yaw);
-      // Leading whole impostors (ImpostorConfig::view_lead): how fast the eye goes round Ta's
-      // vertical in the character's frame (radians of azimuth per second, from the previous planned
-      // frame). The view test's frame turns about the vertical by as much (the angle the test
-      // measures). A turn about the vertical keeps the picture upright; a turn about the line of
-      // sight's own axis of motion would roll it (camera 25 degrees above, 4 degrees ahead: about
-      // 1.7 degrees).
-      float lead_azimuth_rate = 0.0f, lead_rate = 0.0f;
-      if (config_.view_lead > 0.0f && cc.view_test) {
+      // Leading whole impostors (ImpostorConfig::view_lead): the eye in the character's frame, and
+      // its velocity there since the previous planned frame (kept when the character is planned
+      // again in the same frame, as a refresh budget does), for a refresh to lead by.
+      if (config_.view_lead > 0.0f && cc.view_test && (time != cs.eye_time || !cs.eye_valid)) {
         const glm::vec3 e = glm::vec3(cy * (camera.eye.x - ta.x) - sy * (camera.eye.z - ta.z), camera.eye.y - ta.y,
                                       sy * (camera.eye.x - ta.x) + cy * (camera.eye.z - ta.z));
-        if (time != cs.eye_time || !cs.eye_valid) {  // planned again in the same frame (a budget): kept
-          const bool later = cs.eye_valid && time > cs.eye_time;
-          cs.eye_vel = later ? (e - cs.eye_char) / (time - cs.eye_time) : glm::vec3(0.0f);
-          cs.eye_step = later ? time - cs.eye_time : 0.0f;
-          cs.eye_char = e;
-          cs.eye_time = time;
-          cs.eye_valid = true;
-        }
-        const float h2 = e.x * e.x + e.z * e.z;
-        if (h2 > 0.01f * glm::dot(e, e)) {  // not from (nearly) overhead, where the azimuth spins
-          lead_azimuth_rate = (e.z * cs.eye_vel.x - e.x * cs.eye_vel.z) / h2;
-          lead_rate = std::abs(lead_azimuth_rate);
-        }
+        const bool later = cs.eye_valid && time > cs.eye_time;
+        cs.eye_vel = later ? (e - cs.eye_char) / (time - cs.eye_time) : glm::vec3(0.0f);
+        cs.eye_step = later ? time - cs.eye_time : 0.0f;
+        cs.eye_char = e;
+        cs.eye_time = time;
+        cs.eye_valid = true;
       }
 
       // Posture distances of the current frame (squared, model space, scaled).
       const std::array<float, 4> posture = posture_at(bc, f0, f1, blend);
       bool must = refresh;  // no usable snapshot: refreshed whatever the budget
       float staleness = 0.0f;
+      // Both thresholds' weight, and the view threshold (radians) it gives.
+      const float w = distance_weight(cc, glm::distance(ta, camera.eye), pixels);
+      const float thr = std::min(glm::radians(cc.view_threshold_deg) * w, 3.14159265f);
       if (!refresh) {
-        const float w = distance_weight(cc, glm::distance(ta, camera.eye), pixels);
         float ahead = 0.0f;  // staleness of a fresh one, where it may be refreshed ahead
         if (cc.view_test) {
-          const float thr = std::min(glm::radians(cc.view_threshold_deg) * w, 3.14159265f);
           const float cthr = w == 1.0f ? cos_view : std::cos(thr);
           const float c = rotation_cosine(cs.view, view);
           // A threshold of 0 refreshes on any turn: a slow turn's cosine rounds to 1 in floats.
@@ -650,18 +640,27 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
         SceneCamera shot = camera;
         glm::vec3 shot_right = cam_right, shot_up = cam_up;
         glm::mat3 shot_view = view;
-        float lead_angle = 0.0f;
-        if (lead_rate > 0.0f) {
-          const float thr = std::min(glm::radians(cc.view_threshold_deg) *
-                                         distance_weight(cc, glm::distance(ta, camera.eye), pixels), 3.14159265f);
-          // The lead, as the view frame's turn, at most two frames' turn short of the threshold:
-          // a lead of the whole threshold would be due again at the next frame wherever the turn
-          // is a little off the one foreseen (flow test bed, 8 degrees, poses held, view_lead 1:
-          // refresh fraction 0.033 with the margin, 0.030 without, so it costs little).
-          lead_angle = std::min({config_.view_lead * thr, thr - 2.0f * lead_rate * cs.eye_step, lead_rate * kLeadTimeMax});
+        float lead_angle = 0.0f, azimuth_rate = 0.0f;
+        if (config_.view_lead > 0.0f && cc.view_test) {
+          // How fast the eye goes round Ta's vertical (radians of azimuth per second): the view
+          // test's frame turns about the vertical by as much. A turn about the vertical keeps the
+          // picture upright; a turn about the line of sight's own axis of motion would roll it
+          // (camera 25 degrees above, 4 degrees ahead: about 1.7 degrees). Not from (nearly)
+          // overhead, where the azimuth spins.
+          const glm::vec3 &e = cs.eye_char, &v = cs.eye_vel;
+          const float h2 = e.x * e.x + e.z * e.z;
+          if (h2 > 0.01f * glm::dot(e, e)) {
+            azimuth_rate = (e.z * v.x - e.x * v.z) / h2;
+            const float rate = std::abs(azimuth_rate);
+            // The lead, at most two frames' turn short of the threshold: a lead of the whole
+            // threshold would be due again at the next frame wherever the turn is a little off
+            // the one foreseen (flow test bed, 8 degrees, poses held, view_lead 1: refresh
+            // fraction 0.033 with the margin, 0.030 without, so it costs little).
+            lead_angle = std::min({config_.view_lead * thr, thr - 2.0f * rate * cs.eye_step, rate * kLeadTimeMax});
+          }
         }
         if (lead_angle > 0.0f) {  // as a turn of the azimuth about Ta's vertical
-          const float azimuth = std::copysign(lead_angle, lead_azimuth_rate);
+          const float azimuth = std::copysign(lead_angle, azimuth_rate);
           const glm::mat3 turn = glm::mat3(glm::rotate(glm::mat4(1.0f), azimuth, glm::vec3(0.0f, 1.0f, 0.0f)));
           shot.eye = ta + turn * (camera.eye - ta);
           shot.target = ta + turn * (camera.target - ta);
