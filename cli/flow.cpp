@@ -503,6 +503,14 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
                             " triangles each on average at the finest level; a part card (its quad and its refreshes) "
                             "costs about what drawing so few triangles does, so part cards gain little over geometry on "
                             "this model, and whole impostors are the faster (docs/flow.md)");
+    // Whole impostors on a character of so few triangles gain nothing either: its quad and its
+    // refreshes cost what drawing it does.
+    if (const std::size_t tris = m->lods.empty() ? 0 : m->lods.front().indices.size() / 3;
+        !a.impostor_parts && tris > 0 && tris < kFewTrianglesPerPart)
+      model_lines.push_back(std::to_string(tris) +
+                            " triangles at the finest level; an impostor (its quad and its refreshes) costs about what "
+                            "drawing so few triangles does, so impostors gain little or nothing over geometry on this "
+                            "model (docs/flow.md)");
     for (const std::string& n : model_lines) {
       if (!a.json) std::fprintf(stderr, "flow: note: %s: %s\n", path.c_str(), n.c_str());
       notes.push_back(path + ": " + n);

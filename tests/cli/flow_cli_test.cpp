@@ -791,10 +791,18 @@ TEST(FlowCli, PartCardsOnFewTrianglesAPartAreNoted) {
     else
       EXPECT_EQ(notes.find("--impostor-parts"), std::string::npos) << notes;
   }
-  // Whole impostors: no such note.
+  // Whole impostors: no such note, nor the whole character's on the Fox's 576 triangles.
   Out o = run("flow --model " + dir + "Fox.glb --frames 1 --humans 2 --size 320x256 --json -o " + d.string());
   ASSERT_EQ(o.status, 0) << o.text;
   EXPECT_EQ(o.text.find("--impostor-parts:"), std::string::npos) << o.text;
+  EXPECT_EQ(o.text.find("triangles at the finest level"), std::string::npos) << o.text;
+  // SimpleSkin's 8 triangles: whole impostors cannot pay either (flow --targets misses all five there).
+  Out ss = run("flow --model " + dir + "SimpleSkin.gltf --frames 1 --humans 2 --size 320x256 --json -o " + d.string());
+  ASSERT_EQ(ss.status, 0) << ss.text;
+  const auto js = nlohmann::json::parse(last_json_line(ss.text));
+  ASSERT_TRUE(js.contains("model_notes")) << ss.text;
+  EXPECT_NE(js["model_notes"].dump().find("8 triangles at the finest level; an impostor"), std::string::npos)
+      << js["model_notes"].dump();
   // inspect lists the parts: the Fox's 16, their skin shares summing to one, and says they are few.
   Out i = run("inspect " + dir + "Fox.glb --json");
   ASSERT_EQ(i.status, 0) << i.text;
