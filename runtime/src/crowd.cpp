@@ -4,6 +4,8 @@
 #include <cmath>
 #include <optional>
 #include <thread>
+#include <unordered_map>
+#include <vector>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -742,6 +744,55 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
   if (as_geometry) draw_geometry();
 }
 
+void FramePlanner::follow_ids(const Crowd& crowd) {
+  const std::size_t n = crowd.size(), old = cache_.size(), common = std::min(n, old);
+  std::size_t same = 0;
+  while (same < common && cache_[same].owner == crowd[same].id) ++same;
+  if (same == common) {  // unchanged, or characters added or removed at the end (begin_frame's resizes)
+    if (n > old) {
+      cache_.resize(n);
+      for (std::size_t i = old; i < n; ++i) cache_[i].owner = crowd[i].id;
+    }
+    return;
+  }
+  // The slots by owner; a character without an id keeps the slot of its index if that had none.
+  std::unordered_map<std::uint32_t, std::size_t> slot_of;
+  slot_of.reserve(old);
+  for (std::size_t i = 0; i < old; ++i)
+    if (cache_[i].owner != 0) slot_of.emplace(cache_[i].owner, i);
+  const std::size_t parts = parts_ > 1 ? static_cast<std::size_t>(parts_) : 0;
+  const bool with_parts = parts > 0 && part_cache_.size() == old * parts;
+  std::vector<CacheState> next(n);
+  std::vector<PartCache> next_parts(with_parts ? n * parts : 0);
+  std::vector<std::uint8_t> taken(old, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint32_t id = crowd[i].id;
+    std::size_t from = old;
+    if (id != 0) {
+      if (const auto it = slot_of.find(id); it != slot_of.end()) from = it->second;
+    } else if (i < old && cache_[i].owner == 0) {
+      from = i;
+    }
+    if (from < old && !taken[from]) {  // a copy with the same id gets a slot of its own
+      taken[from] = 1;
+      next[i] = cache_[from];
+      if (with_parts)
+        std::copy_n(part_cache_.begin() + static_cast<std::ptrdiff_t>(from * parts), parts,
+                    next_parts.begin() + static_cast<std::ptrdiff_t>(i * parts));
+    }
+    next[i].owner = id;
+  }
+  for (std::size_t i = 0; i < old; ++i) {
+    if (taken[i]) continue;
+    if (cache_[i].window.valid()) atlas_.release(cache_[i].window);
+    if (with_parts)
+      for (std::size_t k = i * parts; k < (i + 1) * parts; ++k)
+        if (part_cache_[k].window.valid()) atlas_.release(part_cache_[k].window);
+  }
+  cache_.swap(next);
+  if (with_parts) part_cache_.swap(next_parts);
+}
+
 std::size_t FramePlanner::begin_frame(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode) {
   const Model& m = *model_;
   const std::size_t n = crowd.size();
@@ -752,13 +803,16 @@ std::size_t FramePlanner::begin_frame(const Crowd& crowd, const SceneCamera& cam
   if (want_parts != parts_) {
     for (auto& c : cache_) {
       if (c.window.valid()) atlas_.release(c.window);
+      const std::uint32_t owner = c.owner;
       c = CacheState{};
+      c.owner = owner;
     }
     for (auto& pc : part_cache_)
       if (pc.window.valid()) atlas_.release(pc.window);
     part_cache_.clear();
     parts_ = want_parts;
   }
+  follow_ids(crowd);
   if (parts_ > 1 && part_cache_.size() != n * parts_) {
     for (std::size_t k = n * parts_; k < part_cache_.size(); ++k)
       if (part_cache_[k].window.valid()) atlas_.release(part_cache_[k].window);

@@ -1,8 +1,10 @@
 // The impostor logic without GL: snapshot camera, cache tests, window choice, atlas packing and
 // the frame planner's decisions.
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <map>
 #include <set>
 #include <tuple>
 
@@ -327,6 +329,13 @@ ImpostorConfig view_test_only(float degrees) {
   return cfg;
 }
 
+// Part cards with the cache's view test alone, at `degrees`.
+ImpostorConfig part_cards_view_only(float degrees) {
+  ImpostorConfig cfg = view_test_only(degrees);
+  cfg.part_cards = true;
+  return cfg;
+}
+
 // The default camera looking down -Z at y = 1.5 from `distance` metres.
 SceneCamera facing_camera(float distance) {
   SceneCamera cam;
@@ -383,6 +392,68 @@ TEST(FramePlanner, CacheTestsDriveSnapshots) {
   EXPECT_EQ(planner.plan(crowd, cam, 0.26f, RenderMode::kImpostor).stats.snapshots, 0);
   planner.invalidate();
   EXPECT_EQ(planner.plan(crowd, cam, 0.26f, RenderMode::kImpostor).stats.snapshots, 5);
+}
+
+// Each billboard's window (page and uv rectangle) by its character's x (the characters stand in a
+// row, so x names them).
+std::map<int, glm::vec4> windows_by_x(const FramePlan& plan) {
+  std::map<int, glm::vec4> out;
+  for (const BillboardGpu& b : plan.billboards)
+    out[static_cast<int>(std::lround(b.ta_half.x * 10.0f))] =
+        glm::vec4(b.uv_rect.x + b.layer.x * 10.0f, b.uv_rect.y, b.uv_rect.z, b.uv_rect.w);
+  return out;
+}
+
+// A game removes, reorders and replaces characters: each keeps its own snapshot (the ids
+// Crowd::add gives), whether the crowd is changed with Crowd::remove or through characters(), and a
+// removed character's window goes back to the atlas. The row's neighbours are seen within 8 degrees
+// of each other from 30 m, so a snapshot left with the index would pass the view test and show
+// another character's picture.
+TEST(FramePlanner, SnapshotsFollowTheirCharactersWhenTheCrowdChanges) {
+  Model m = tiny_model();
+  Crowd crowd = standing_row(m, 5, 2.0f);
+  for (std::size_t i = 0; i < crowd.size(); ++i) EXPECT_NE(crowd[i].id, 0u);
+  EXPECT_NE(crowd[0].id, crowd[1].id);
+  FramePlanner planner(m, view_test_only(8.0f));
+  const SceneCamera cam = facing_camera(30.0f);
+  ASSERT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.snapshots, 5);
+  const std::map<int, glm::vec4> before = windows_by_x(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor));
+  ASSERT_EQ(before.size(), 5u);
+  const int windows = planner.atlas().windows_used();
+  // Crowd::remove(1): the last character takes index 1.
+  const std::uint32_t last = crowd[4].id;
+  crowd.remove(1);
+  ASSERT_EQ(crowd.size(), 4u);
+  EXPECT_EQ(crowd[1].id, last);
+  const FramePlan& p1 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+  EXPECT_EQ(p1.stats.snapshots, 0);
+  for (const auto& [x, w] : windows_by_x(p1)) {
+    EXPECT_EQ(w, before.at(x)) << "x " << x;
+  }
+  EXPECT_EQ(planner.atlas().windows_used(), windows - 1);
+  // Erased through characters(), order kept.
+  crowd.characters().erase(crowd.characters().begin());
+  const FramePlan& p2 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+  EXPECT_EQ(p2.stats.snapshots, 0);
+  EXPECT_EQ(p2.billboards.size(), 3u);
+  for (const auto& [x, w] : windows_by_x(p2)) {
+    EXPECT_EQ(w, before.at(x)) << "x " << x;
+  }
+  EXPECT_EQ(planner.atlas().windows_used(), windows - 2);
+  // Reversed: the same windows.
+  std::reverse(crowd.characters().begin(), crowd.characters().end());
+  const FramePlan& p3 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+  EXPECT_EQ(p3.stats.snapshots, 0);
+  for (const auto& [x, w] : windows_by_x(p3)) {
+    EXPECT_EQ(w, before.at(x)) << "x " << x;
+  }
+  // A new character where one was removed gets a snapshot of its own; the others keep theirs.
+  const Character moved = crowd[0];
+  crowd.remove(0);
+  crowd.add(moved);  // the same place, a new id: a new character
+  const FramePlan& p4 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+  EXPECT_EQ(p4.stats.snapshots, 1);
+  EXPECT_EQ(planner.atlas().windows_used(), windows - 2);
 }
 
 // Screen-size weighting (CacheConfig::reference_pixels): a character 30 m away and one 300 m away
@@ -598,7 +669,9 @@ TEST(FramePlanner, LeadingWholeImpostorsAreSeenFromBothSides) {
       crowd[0].yaw = glm::radians(1.5f * static_cast<float>(f));
       const FramePlan& p = planner.plan(crowd, cam, static_cast<float>(f) / 30.0f, RenderMode::kImpostor);
       ASSERT_EQ(p.stats.impostors, 1);
-      if (f == 0) EXPECT_EQ(p.stats.lead_snapshots, 0);  // no turn seen yet
+      if (f == 0) {
+        EXPECT_EQ(p.stats.lead_snapshots, 0);  // no turn seen yet
+      }
       led[k] += p.stats.lead_snapshots;
       // The eye's azimuth in the character's frame: the eye stands at +Z, the character turns by
       // +yaw, so the eye goes round it by -yaw.
@@ -1209,14 +1282,45 @@ TEST(BodyParts, CardFollowsItsBoneWithoutARefresh) {
   EXPECT_EQ(p2.stats.snapshots, 1);
 }
 
+// Part cards follow their characters too: removing the first of three hinges (the last takes its
+// index) leaves the other two with their own cards' windows, and gives the removed one's back.
+TEST(BodyParts, CardsFollowTheirCharactersWhenTheCrowdChanges) {
+  Model m = hinge_model();
+  Crowd crowd(m);
+  for (int i = 0; i < 3; ++i) crowd.add(Character{glm::vec3(2.0f * static_cast<float>(i - 1), 0, 0), 0.0f, 1.0f, 0, 0.0f, 0.0f});
+  ImpostorConfig cfg = part_cards_view_only(20.0f);
+  FramePlanner planner(m, cfg);
+  const SceneCamera cam = facing_camera(20.0f);
+  ASSERT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.part_snapshots, 6);
+  // Each card's window by its character (x, from the cards' order: two a character) and part.
+  auto windows = [](const FramePlan& p) {
+    std::map<std::pair<int, int>, glm::vec4> out;
+    for (std::size_t k = 0; k < p.billboards.size(); ++k) {
+      const BillboardGpu& b = p.billboards[k];
+      out[{static_cast<int>(std::lround(p.billboards[k - k % 2].ta_half.x)), static_cast<int>(k % 2)}] =
+          glm::vec4(b.uv_rect.x + b.layer.x * 10.0f, b.uv_rect.y, b.uv_rect.z, b.uv_rect.w);
+    }
+    return out;
+  };
+  const FramePlan& p0 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+  ASSERT_EQ(p0.billboards.size(), 6u);
+  const auto before = windows(p0);
+  const int used = planner.atlas().windows_used();
+  crowd.remove(0);
+  const FramePlan& p1 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+  EXPECT_EQ(p1.stats.part_snapshots, 0);
+  ASSERT_EQ(p1.billboards.size(), 4u);
+  for (const auto& [key, w] : windows(p1)) {
+    EXPECT_EQ(w, before.at(key)) << "x " << key.first << ", part " << key.second;
+  }
+  EXPECT_EQ(planner.atlas().windows_used(), used - 2);
+}
+
 TEST(BodyParts, ViewTestIgnoresTheCardsRollButNotItsTilt) {
   Model m = hinge_model();
   Crowd crowd(m);
   crowd.add(Character{glm::vec3(0, 0, 0), 0.0f, 1.0f, 0, 0.0f, 1.0f});
-  ImpostorConfig cfg;
-  cfg.part_cards = true;
-  cfg.cache.posture_test = false;
-  cfg.cache.view_threshold_deg = 8.0f;
+  ImpostorConfig cfg = part_cards_view_only(8.0f);
   FramePlanner planner(m, cfg);
   const SceneCamera cam = facing_camera(30.0f);
   EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.part_snapshots, 2);
@@ -1266,10 +1370,7 @@ TEST(BodyParts, LeadingCardsAreSeenFromBothSides) {
   SceneCamera cam;
   cam.eye = {30.0f, 1.5f, 0.0f};
   cam.target = {0.0f, 1.5f, 0.0f};
-  ImpostorConfig cfg;
-  cfg.part_cards = true;
-  cfg.cache.posture_test = false;
-  cfg.cache.view_threshold_deg = 8.0f;
+  ImpostorConfig cfg = part_cards_view_only(8.0f);
   double mean[2] = {0, 0}, most[2] = {0, 0};
   int snapshots[2] = {0, 0};
   for (int lead = 0; lead < 2; ++lead) {
@@ -1309,10 +1410,7 @@ TEST(BodyParts, LimbCardsTurnAboutTheLimbAxis) {
   EXPECT_GT(parts[0].flatness, 100.0f);
   Crowd crowd(m);
   crowd.add(Character{glm::vec3(0, 0, 0), 0.0f, 1.0f, 0, 0.0f, 0.0f});
-  ImpostorConfig cfg;
-  cfg.part_cards = true;
-  cfg.cache.posture_test = false;
-  cfg.cache.view_threshold_deg = 8.0f;
+  ImpostorConfig cfg = part_cards_view_only(8.0f);
   const SceneCamera cam = facing_camera(30.0f);
   for (bool turn : {true, false}) {
     cfg.turn_limb_cards = turn;
@@ -1474,10 +1572,7 @@ TEST(BodyParts, RefreshBudgetCountsCards) {
   Model m = pole_model();
   Crowd crowd(m);
   for (int i = 0; i < 3; ++i) crowd.add(Character{glm::vec3(3.0f * i - 3.0f, 0, 0), 0.0f, 1.0f, 0, 0.0f, 0.0f});
-  ImpostorConfig cfg;
-  cfg.part_cards = true;
-  cfg.cache.posture_test = false;
-  cfg.cache.view_threshold_deg = 8.0f;
+  ImpostorConfig cfg = part_cards_view_only(8.0f);
   cfg.cache.refresh_budget = 1;
   cfg.turn_limb_cards = true;
   FramePlanner planner(m, cfg);

@@ -20,7 +20,8 @@
 //   auto renderer = rt::Renderer::create(*model, config);  // GPU buffers, atlas pages
 //   if (!renderer) { std::puts(renderer.error().message().c_str()); return; }
 //
-//   // Every frame (move characters by writing crowd[i].position / .yaw):
+//   // Every frame (move characters by writing crowd[i].position / .yaw; crowd.remove(i) or any edit
+//   // of crowd.characters() between frames: each keeps its snapshots by the id crowd.add gave it):
 //   rt::SceneCamera cam{.eye = eye, .target = target, .width = w, .height = h};
 //   const rt::FramePlan& plan = planner.plan(crowd, cam, seconds, rt::RenderMode::kAuto);
 //   (*renderer)->draw(plan);                      // into the bound framebuffer

@@ -25,13 +25,33 @@ struct Character {
   int clip = 0;              // index into Model::clips (ignored when the model has none)
   float phase = 0.0f;        // seconds added to the scene time
   float speed = 1.0f;        // playback rate
+  // Who this is to the impostor cache: Crowd::add gives each character a new id (never 0), and a
+  // FramePlanner keeps a character's snapshots with its id, so removing, reordering or replacing
+  // characters (Crowd::remove, or characters() edited at will) leaves each with its own picture.
+  // 0 (a character put into characters() directly): known by its index alone, so a snapshot stays
+  // with the index (the character now there keeps it until a cache test fires).
+  std::uint32_t id = 0;
 };
 
 class Crowd {
  public:
   explicit Crowd(const Model& model) : model_(&model) {}
   const Model& model() const { return *model_; }
-  int add(const Character& c) { characters_.push_back(c); return static_cast<int>(characters_.size()) - 1; }
+  // Appends `c` under a new id (whatever c.id was: a copy of a character is another character);
+  // returns its index.
+  int add(const Character& c) {
+    characters_.push_back(c);
+    characters_.back().id = next_id_++;
+    if (next_id_ == 0) next_id_ = 1;
+    return static_cast<int>(characters_.size()) - 1;
+  }
+  // Removes character i in constant time: the last character takes its index (the order of the
+  // others is not kept; to keep it, erase from characters()). Its impostor windows go back to the
+  // atlas at the next frame planned.
+  void remove(std::size_t i) {
+    if (i + 1 < characters_.size()) characters_[i] = characters_.back();
+    characters_.pop_back();
+  }
   void reserve(std::size_t n) { characters_.reserve(n); }
   void clear() { characters_.clear(); }
   std::size_t size() const { return characters_.size(); }
@@ -43,6 +63,7 @@ class Crowd {
  private:
   const Model* model_;
   std::vector<Character> characters_;
+  std::uint32_t next_id_ = 1;
 };
 
 // World position of the character's Ta at scene time `time` (section 4.2's fixed point, carried
@@ -472,6 +493,7 @@ class FramePlanner {
     glm::vec4 rect{-1, -1, 1, 1};  // part of the window the last snapshot used
     AtlasWindow window;
     bool valid = false;
+    std::uint32_t owner = 0;  // Character::id of the character this slot is for
     // Leading part cards (ImpostorConfig::lead_cards) and whole impostors (view_lead): the eye in
     // the character's frame at the last planned frame, and that frame's time; whole impostors also
     // keep the eye's velocity there (units per second) from the frame before.
@@ -599,6 +621,9 @@ class FramePlanner {
   // crowd is planned serially by end_frame), plan_chunk for each (any thread, any order),
   // end_frame (joins the chunks, serves the budget, returns the plan).
   std::size_t begin_frame(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode);
+  // Moves the cache slots (and part cards) with their characters' ids where the crowd has changed
+  // other than at its end, releasing the windows of characters no longer in it (begin_frame).
+  void follow_ids(const Crowd& crowd);
   void plan_chunk(std::size_t c);
   const FramePlan& end_frame();
   void refresh_listed(const std::vector<PendingRefresh>& list, std::size_t take, bool ahead);
