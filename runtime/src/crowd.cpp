@@ -755,31 +755,31 @@ void FramePlanner::follow_ids(const Crowd& crowd) {
     }
     return;
   }
-  // The slots by owner; a character without an id keeps the slot of its index if that had none.
-  std::unordered_map<std::uint32_t, std::size_t> slot_of;
-  slot_of.reserve(old);
-  for (std::size_t i = 0; i < old; ++i)
-    if (cache_[i].owner != 0) slot_of.emplace(cache_[i].owner, i);
   const std::size_t parts = parts_ > 1 ? static_cast<std::size_t>(parts_) : 0;
   const bool with_parts = parts > 0 && part_cache_.size() == old * parts;
   std::vector<CacheState> next(n);
   std::vector<PartCache> next_parts(with_parts ? n * parts : 0);
-  std::vector<std::uint8_t> taken(old, 0);
+  std::vector<std::uint8_t> taken(old, 0), placed(n, 0);
+  auto take = [&](std::size_t from, std::size_t i) {
+    taken[from] = placed[i] = 1;
+    next[i] = cache_[from];
+    if (with_parts)
+      std::copy_n(part_cache_.begin() + static_cast<std::ptrdiff_t>(from * parts), parts,
+                  next_parts.begin() + static_cast<std::ptrdiff_t>(i * parts));
+  };
+  // First the characters still at their index (a character without an id keeps its index's slot
+  // if that had none), so that of two with one id the one that stayed keeps its own; then the
+  // others by id.
+  for (std::size_t i = 0; i < common; ++i)
+    if (cache_[i].owner == crowd[i].id) take(i, i);
+  std::unordered_map<std::uint32_t, std::size_t> slot_of;
+  slot_of.reserve(old);
+  for (std::size_t i = 0; i < old; ++i)
+    if (!taken[i] && cache_[i].owner != 0) slot_of.emplace(cache_[i].owner, i);
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint32_t id = crowd[i].id;
-    std::size_t from = old;
-    if (id != 0) {
-      if (const auto it = slot_of.find(id); it != slot_of.end()) from = it->second;
-    } else if (i < old && cache_[i].owner == 0) {
-      from = i;
-    }
-    if (from < old && !taken[from]) {  // a copy with the same id gets a slot of its own
-      taken[from] = 1;
-      next[i] = cache_[from];
-      if (with_parts)
-        std::copy_n(part_cache_.begin() + static_cast<std::ptrdiff_t>(from * parts), parts,
-                    next_parts.begin() + static_cast<std::ptrdiff_t>(i * parts));
-    }
+    if (!placed[i] && id != 0)
+      if (const auto it = slot_of.find(id); it != slot_of.end() && !taken[it->second]) take(it->second, i);
     next[i].owner = id;
   }
   for (std::size_t i = 0; i < old; ++i) {

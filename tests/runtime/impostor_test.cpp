@@ -447,13 +447,56 @@ TEST(FramePlanner, SnapshotsFollowTheirCharactersWhenTheCrowdChanges) {
   for (const auto& [x, w] : windows_by_x(p3)) {
     EXPECT_EQ(w, before.at(x)) << "x " << x;
   }
-  // A new character where one was removed gets a snapshot of its own; the others keep theirs.
-  const Character moved = crowd[0];
+  // Taken out and added again (its id kept): the same character, the same window.
+  Character moved = crowd[0];
   crowd.remove(0);
-  crowd.add(moved);  // the same place, a new id: a new character
+  crowd.add(moved);
   const FramePlan& p4 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
-  EXPECT_EQ(p4.stats.snapshots, 1);
+  EXPECT_EQ(p4.stats.snapshots, 0);
+  for (const auto& [x, w] : windows_by_x(p4)) {
+    EXPECT_EQ(w, before.at(x)) << "x " << x;
+  }
+  // A new character (id 0 given: the crowd's next) where one was removed gets a snapshot of its own.
+  crowd.remove(crowd.size() - 1);
+  moved.id = 0;
+  crowd.add(moved);
+  const FramePlan& p5 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+  EXPECT_EQ(p5.stats.snapshots, 1);
   EXPECT_EQ(planner.atlas().windows_used(), windows - 2);
+}
+
+// A game that rebuilds its crowd every frame keeps the snapshots: in the same order with the crowd's
+// ids (clear() starts them over), in any order with ids of its own.
+TEST(FramePlanner, CrowdsRebuiltEveryFrameKeepTheirSnapshots) {
+  Model m = tiny_model();
+  const Crowd row = standing_row(m, 4, 2.0f);
+  Crowd crowd(m);
+  auto rebuild = [&](bool reversed, bool own_ids) {
+    crowd.clear();
+    for (std::size_t k = 0; k < row.size(); ++k) {
+      const std::size_t i = reversed ? row.size() - 1 - k : k;
+      Character c = row[i];
+      c.id = own_ids ? static_cast<std::uint32_t>(100 + i) : 0u;
+      crowd.add(c);
+    }
+  };
+  FramePlanner planner(m, view_test_only(8.0f));
+  const SceneCamera cam = facing_camera(30.0f);
+  for (const bool own : {false, true}) {
+    planner.invalidate();
+    rebuild(false, own);
+    ASSERT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.snapshots, 4);
+    const std::map<int, glm::vec4> before = windows_by_x(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor));
+    rebuild(false, own);
+    EXPECT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.snapshots, 0) << own;
+    if (!own) continue;
+    rebuild(true, own);
+    const FramePlan& p = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+    EXPECT_EQ(p.stats.snapshots, 0);
+    for (const auto& [x, w] : windows_by_x(p)) {
+      EXPECT_EQ(w, before.at(x)) << "x " << x;
+    }
+  }
 }
 
 // Screen-size weighting (CacheConfig::reference_pixels): a character 30 m away and one 300 m away

@@ -25,11 +25,14 @@ struct Character {
   int clip = 0;              // index into Model::clips (ignored when the model has none)
   float phase = 0.0f;        // seconds added to the scene time
   float speed = 1.0f;        // playback rate
-  // Who this is to the impostor cache: Crowd::add gives each character a new id (never 0), and a
-  // FramePlanner keeps a character's snapshots with its id, so removing, reordering or replacing
-  // characters (Crowd::remove, or characters() edited at will) leaves each with its own picture.
-  // 0 (a character put into characters() directly): known by its index alone, so a snapshot stays
-  // with the index (the character now there keeps it until a cache test fires).
+  // Who this is to the impostor cache: a FramePlanner keeps a character's snapshots with its id, so
+  // removing, reordering or replacing characters (Crowd::remove, or characters() edited at will)
+  // between frames leaves each with its own picture. Crowd::add gives a character without one (0)
+  // the next of the crowd's ids, or keeps the game's own (an entity's: then a crowd rebuilt every
+  // frame in any order keeps its snapshots). Ids should be unique in a crowd: a copy of a
+  // character keeps its id, so set id = 0 to add it as another. 0 in characters() (put there
+  // directly): known by its index alone, as if its snapshot were the index's (the character now
+  // there keeps it until a cache test fires).
   std::uint32_t id = 0;
 };
 
@@ -37,12 +40,13 @@ class Crowd {
  public:
   explicit Crowd(const Model& model) : model_(&model) {}
   const Model& model() const { return *model_; }
-  // Appends `c` under a new id (whatever c.id was: a copy of a character is another character);
-  // returns its index.
+  // Appends `c`, under the crowd's next id if c.id is 0 (Character::id); returns its index.
   int add(const Character& c) {
     characters_.push_back(c);
-    characters_.back().id = next_id_++;
-    if (next_id_ == 0) next_id_ = 1;
+    if (c.id == 0) {
+      characters_.back().id = next_id_++;
+      if (next_id_ == 0) next_id_ = 1;
+    }
     return static_cast<int>(characters_.size()) - 1;
   }
   // Removes character i in constant time: the last character takes its index (the order of the
@@ -53,7 +57,12 @@ class Crowd {
     characters_.pop_back();
   }
   void reserve(std::size_t n) { characters_.reserve(n); }
-  void clear() { characters_.clear(); }
+  // Removes every character and starts the ids over, so that a crowd rebuilt every frame with add()
+  // in the same order gets the same ids (give ids of your own to rebuild it in any order).
+  void clear() {
+    characters_.clear();
+    next_id_ = 1;
+  }
   std::size_t size() const { return characters_.size(); }
   Character& operator[](std::size_t i) { return characters_[i]; }
   const Character& operator[](std::size_t i) const { return characters_[i]; }
