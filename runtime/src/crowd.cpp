@@ -4,7 +4,6 @@
 #include <cmath>
 #include <optional>
 #include <thread>
-#include <unordered_map>
 #include <vector>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -757,9 +756,15 @@ void FramePlanner::follow_ids(const Crowd& crowd) {
   }
   const std::size_t parts = parts_ > 1 ? static_cast<std::size_t>(parts_) : 0;
   const bool with_parts = parts > 0 && part_cache_.size() == old * parts;
-  std::vector<CacheState> next(n);
-  std::vector<PartCache> next_parts(with_parts ? n * parts : 0);
-  std::vector<std::uint8_t> taken(old, 0), placed(n, 0);
+  // Into the scratch lists (kept, so that a game's changes allocate nothing once they have been
+  // this large), then swapped in.
+  std::vector<CacheState>& next = follow_.cache;
+  std::vector<PartCache>& next_parts = follow_.parts;
+  std::vector<std::uint8_t>&taken = follow_.taken, &placed = follow_.placed;
+  next.assign(n, CacheState{});
+  next_parts.assign(with_parts ? n * parts : 0, PartCache{});
+  taken.assign(old, 0);
+  placed.assign(n, 0);
   auto take = [&](std::size_t from, std::size_t i) {
     taken[from] = placed[i] = 1;
     next[i] = cache_[from];
@@ -769,17 +774,23 @@ void FramePlanner::follow_ids(const Crowd& crowd) {
   };
   // First the characters still at their index (a character without an id keeps its index's slot
   // if that had none), so that of two with one id the one that stayed keeps its own; then the
-  // others by id.
+  // others by id, from the other slots sorted by owner.
   for (std::size_t i = 0; i < common; ++i)
     if (cache_[i].owner == crowd[i].id) take(i, i);
-  std::unordered_map<std::uint32_t, std::size_t> slot_of;
-  slot_of.reserve(old);
+  auto& by_owner = follow_.by_owner;
+  by_owner.clear();
   for (std::size_t i = 0; i < old; ++i)
-    if (!taken[i] && cache_[i].owner != 0) slot_of.emplace(cache_[i].owner, i);
+    if (!taken[i] && cache_[i].owner != 0) by_owner.emplace_back(cache_[i].owner, static_cast<std::uint32_t>(i));
+  std::sort(by_owner.begin(), by_owner.end());
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint32_t id = crowd[i].id;
     if (!placed[i] && id != 0)
-      if (const auto it = slot_of.find(id); it != slot_of.end() && !taken[it->second]) take(it->second, i);
+      for (auto it = std::lower_bound(by_owner.begin(), by_owner.end(), std::make_pair(id, std::uint32_t{0}));
+           it != by_owner.end() && it->first == id; ++it)
+        if (!taken[it->second]) {
+          take(it->second, i);
+          break;
+        }
     next[i].owner = id;
   }
   for (std::size_t i = 0; i < old; ++i) {

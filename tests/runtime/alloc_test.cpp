@@ -37,7 +37,9 @@ void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
 namespace bb::runtime {
 namespace {
 
-void expect_no_allocation(bool part_cards) {
+// `churn`: every frame one character leaves from the middle of the crowd (Crowd::remove) and a new
+// one arrives, as a game's do, so the planner moves slots with their ids (FramePlanner::follow_ids).
+void expect_no_allocation(bool part_cards, bool churn = false) {
   if (!BB_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
   std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
@@ -54,13 +56,22 @@ void expect_no_allocation(bool part_cards) {
   cam.eye = {0, 20, 25};
   cam.target = {0, 0, -15};
   float t = 0.0f;
+  auto come_and_go = [&](int f) {
+    if (!churn) return;
+    Character c = crowd[static_cast<std::size_t>(37 * f) % crowd.size()];
+    crowd.remove(static_cast<std::size_t>(37 * f) % crowd.size());
+    c.id = 0;  // a new character where the other stood
+    crowd.add(c);
+  };
   for (int f = 0; f < 5; ++f, t += 1.0f / 60.0f) {
+    come_and_go(f);
     planner.plan(crowd, cam, t, RenderMode::kImpostor);
     planner.plan(crowd, cam, t, RenderMode::kGeometry);
   }
   const long before = g_allocations.load();
   int snapshots = 0;
   for (int f = 0; f < 60; ++f, t += 1.0f / 60.0f) {
+    come_and_go(f);
     cam.eye.x = 0.05f * f;  // a moving camera: windows refresh, none is reallocated
     snapshots += planner.plan(crowd, cam, t, RenderMode::kImpostor).stats.snapshots;
     planner.plan(crowd, cam, t, RenderMode::kGeometry);
@@ -71,6 +82,10 @@ void expect_no_allocation(bool part_cards) {
 
 TEST(PerFrame, PlannerAllocatesNothingAfterWarmUp) { expect_no_allocation(false); }
 TEST(PerFrame, PlannerWithPartCardsAllocatesNothingAfterWarmUp) { expect_no_allocation(true); }
+TEST(PerFrame, PlannerAllocatesNothingAsCharactersComeAndGo) {
+  expect_no_allocation(false, true);
+  expect_no_allocation(true, true);
+}
 
 }  // namespace
 }  // namespace bb::runtime

@@ -1,12 +1,14 @@
 // Characters of one model and the per-frame decisions (no GL): animation time, culling, geometry
 // LOD or impostor window, the two cache tests, atlas windows. The GL Renderer draws a FramePlan.
-// After the first frames the planner allocates nothing.
+// After the first frames the planner allocates nothing (nor when characters come and go, once its
+// crowd has been as large).
 #pragma once
 
 #include <array>
 #include <cstdint>
 #include <memory>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -661,6 +663,15 @@ class FramePlanner {
   AtlasAllocator atlas_;
   std::vector<CacheState> cache_;
   std::vector<PartCache> part_cache_;  // [character * parts + part] when part cards are on
+  // follow_ids' scratch: the slots in their new order, which old slots are taken and which
+  // characters placed, the other slots by owner.
+  struct Follow {
+    std::vector<CacheState> cache;
+    std::vector<PartCache> parts;
+    std::vector<std::uint8_t> taken, placed;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> by_owner;
+  };
+  Follow follow_;
   int parts_ = 1;                      // parts per character (1: ordinary impostors)
   // A part card's new card (and its snapshot, and the snapshot's triangles), in the frame being
   // planned (frame_.setup: its camera, time and frame number).
