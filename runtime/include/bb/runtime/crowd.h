@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <cassert>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -51,10 +52,11 @@ class Crowd {
     }
     return static_cast<int>(characters_.size()) - 1;
   }
-  // Removes character i in constant time: the last character takes its index (the order of the
+  // Removes character i (< size()) in constant time: the last character takes its index (the order of the
   // others is not kept; to keep it, erase from characters()). Its impostor windows go back to the
   // atlas at the next frame planned.
   void remove(std::size_t i) {
+    assert(i < characters_.size());
     if (i + 1 < characters_.size()) characters_[i] = characters_.back();
     characters_.pop_back();
   }
