@@ -321,21 +321,22 @@ float rect_texels(const glm::vec4& rect, int size) {
   return (rect.z - rect.x) * h * (rect.w - rect.y) * h;
 }
 
-// The impostor of a character whose Ta is at `ta` now, from its cached snapshot `cs`: a quad
-// facing the eye, or (aligned snapshots) parallel to the screen, whose axes are the camera's
-// `right` and `up`.
+// The impostor of a character whose Ta is at `ta` now and whose scale is `grow` times its scale at
+// its cached snapshot `cs` (the picture scaled about Ta): a quad facing the eye, or (aligned
+// snapshots) parallel to the screen, whose axes are the camera's `right` and `up`.
 template <typename State>
-BillboardGpu billboard(const glm::vec3& ta, const State& cs, float page, int slot, const glm::vec3& right,
+BillboardGpu billboard(const glm::vec3& ta, const State& cs, float grow, float page, int slot, const glm::vec3& right,
                        const glm::vec3& up) {
   const AtlasWindow& win = cs.window;
-  BillboardGpu b{glm::vec4(ta, cs.half_size),
+  const float half = cs.half_size * grow;
+  BillboardGpu b{glm::vec4(ta, half),
                  glm::vec4(win.x / page, win.y / page, (win.x + win.size) / page, (win.y + win.size) / page),
                  glm::vec4(static_cast<float>(win.page), static_cast<float>(slot), cs.fitted ? 1.0f : 0.0f, 0.0f),
                  cs.rect};
   if (cs.aligned) {
-    b.ta_half = glm::vec4(ta + cs.offset.x * right + cs.offset.y * up, cs.half_size);
-    b.axis_x = glm::vec4(right * cs.half_size, 1.0f);
-    b.axis_y = glm::vec4(up * cs.half_size, 1.0f);
+    b.ta_half = glm::vec4(ta + grow * (cs.offset.x * right + cs.offset.y * up), half);
+    b.axis_x = glm::vec4(right * half, 1.0f);
+    b.axis_y = glm::vec4(up * half, 1.0f);
   }
   return b;
 }
@@ -682,6 +683,7 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
         next.led = lead_angle > 0.0f;
         next.posture = posture;
         next.half_size = sc.half_size;
+        next.scale = ch.scale;
         next.aligned = aligned.has_value();
         next.fitted = fit_quad(cs.valid && !cs.picture_behind ? cs.taken : 0, fs.frame);
         next.picture_behind = false;
@@ -734,7 +736,7 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
         ++*out.budget_used;
       }
       // The old snapshot is drawn where the character stands now (Ta moves with it).
-      out.billboards->push_back(billboard(ta, cs, page, slot, cam_right, cam_up));
+      out.billboards->push_back(billboard(ta, cs, ch.scale / cs.scale, page, slot, cam_right, cam_up));
       st.quad_texels += rect_texels(cs.rect, win.size);
       ++st.impostors;
       ++st.impostors_per_window[win.size_class];

@@ -465,6 +465,32 @@ TEST(FramePlanner, SnapshotsFollowTheirCharactersWhenTheCrowdChanges) {
   EXPECT_EQ(planner.atlas().windows_used(), windows - 2);
 }
 
+// A character scaled between frames (a game's grow or shrink) keeps its snapshot, whose picture is
+// the same scaled about Ta: its quad grows with it (whole impostors, facing the eye and aligned with
+// the screen; part cards are carried by their bones, which scale).
+TEST(FramePlanner, ScaledCharactersQuadsScaleWithThem) {
+  Model m = tiny_model();
+  for (const bool aligned : {false, true}) {
+    Crowd crowd = standing_row(m, 1, 2.0f);
+    ImpostorConfig cfg = view_test_only(8.0f);
+    cfg.aligned_snapshots = aligned;
+    FramePlanner planner(m, cfg);
+    const SceneCamera cam = facing_camera(30.0f);
+    ASSERT_EQ(planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats.snapshots, 1);
+    const BillboardGpu b0 = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).billboards.at(0);
+    const glm::vec3 ta0 = character_ta(m, crowd[0], 0.0f);
+    crowd[0].scale = 1.1f;
+    const FramePlan& p = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+    ASSERT_EQ(p.stats.snapshots, 0) << aligned;  // the same window class
+    const BillboardGpu& b1 = p.billboards.at(0);
+    const glm::vec3 ta1 = character_ta(m, crowd[0], 0.0f);
+    EXPECT_NEAR(b1.ta_half.w, 1.1f * b0.ta_half.w, 1e-5f) << aligned;
+    // The quad's centre keeps its place relative to Ta, scaled.
+    expect_vec3(glm::vec3(b1.ta_half) - ta1, 1.1f * (glm::vec3(b0.ta_half) - ta0), 1e-5f);
+    if (aligned) expect_vec3(glm::vec3(b1.axis_x), 1.1f * glm::vec3(b0.axis_x), 1e-5f);
+  }
+}
+
 // A game that rebuilds its crowd every frame keeps the snapshots: in the same order with the crowd's
 // ids (clear() starts them over), in any order with ids of its own.
 TEST(FramePlanner, CrowdsRebuiltEveryFrameKeepTheirSnapshots) {

@@ -46,6 +46,14 @@ HeadlessContext* context() {
 #define REQUIRE_GL()                                                              \
   if (!context()) GTEST_SKIP() << "no headless OpenGL context: " << context_error()
 
+// `m` = the shared CesiumMan (a Result<Model>, loaded from `path`), or the test skips where
+// ../shared/data is absent.
+#define LOAD_CESIUM_MAN(m)                                                         \
+  const std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb"; \
+  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;          \
+  auto m = load_model(path);                                                      \
+  ASSERT_TRUE(m.ok()) << m.error().message()
+
 // PSNR in dB over the pixels covered (alpha > 0) in either image; RGB compared with alpha
 // premultiplied (background black). Returns 99 when identical.
 double covered_psnr(const Image& a, const Image& b, int* covered) {
@@ -434,10 +442,7 @@ TEST(CrowdRender, ModelsSharingAnAtlasDrawTheirQuadsInOneDraw) {
 // incomplete framebuffer (flow then gives each model an atlas of its own). A GPU may make it.
 TEST(CrowdRender, AnAtlasTooBigForOneTextureIsRefusedWithItsSize) {
   REQUIRE_GL();
-  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
-  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
-  auto m = load_model(path);
-  ASSERT_TRUE(m.ok());
+  LOAD_CESIUM_MAN(m);
   ImpostorConfig cfg;
   cfg.atlas_pages = 600;  // 2.3 GB of colour
   auto r = Renderer::create(*m, cfg);
@@ -454,10 +459,7 @@ TEST(CrowdRender, AnAtlasTooBigForOneTextureIsRefusedWithItsSize) {
 // every character refreshed each frame, compared with geometry frame by frame.
 TEST(CrowdRender, ImpostorFramesMatchGeometryFrames) {
   REQUIRE_GL();
-  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
-  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
-  auto m = load_model(path);
-  ASSERT_TRUE(m.ok());
+  LOAD_CESIUM_MAN(m);
   Crowd crowd = walker_ring(*m);
   const ImpostorConfig cfg = refresh_always();
   FramePlanner planner(*m, cfg);
@@ -491,15 +493,47 @@ TEST(CrowdRender, ImpostorFramesMatchGeometryFrames) {
   }
 }
 
+// Characters a game scales between frames keep their snapshots, drawn at their new size: standing
+// walkers, view test only, every one 8 % larger after its snapshot agrees with the geometry about as
+// well as before.
+TEST(CrowdRender, ScaledCharactersImpostorsMatchTheirGeometry) {
+  REQUIRE_GL();
+  LOAD_CESIUM_MAN(m);
+  Crowd crowd = walker_ring(*m);
+  for (Character& c : crowd.characters()) c.speed = 0.0f;
+  ImpostorConfig cfg;
+  cfg.cache.posture_test = false;
+  FramePlanner planner(*m, cfg);
+  auto renderer = Renderer::create(*m, cfg);
+  ASSERT_TRUE(renderer.ok()) << renderer.error().message();
+  auto target = OffscreenTarget::create(640, 512);
+  ASSERT_TRUE(target.ok());
+  const SceneCamera cam = ring_camera();
+  auto frame = [&](RenderMode mode, int* snapshots) {
+    (*target)->bind(true);
+    const FramePlan& p = planner.plan(crowd, cam, 0.0f, mode);
+    if (snapshots) *snapshots = p.stats.snapshots;
+    (*renderer)->draw(p);
+    return Image{640, 512, (*target)->read_rgba(), p.stats, 0};
+  };
+  int snapshots = 0, covered = 0;
+  const Image i0 = frame(RenderMode::kImpostor, &snapshots);
+  EXPECT_EQ(snapshots, 20);
+  const double before = covered_psnr(frame(RenderMode::kGeometry, nullptr), i0, &covered);
+  for (Character& c : crowd.characters()) c.scale = 1.08f;
+  const Image i1 = frame(RenderMode::kImpostor, &snapshots);
+  const double after = covered_psnr(frame(RenderMode::kGeometry, nullptr), i1, &covered);
+  std::printf("scaled characters: %d snapshots, PSNR %.2f dB before, %.2f dB 8 %% larger\n", snapshots, before, after);
+  EXPECT_LT(snapshots, 20);  // most keep their window
+  EXPECT_GT(after, before - 1.5);
+}
+
 // A far crowd of characters a few pixels high: with the default window sizes they take 16- and
 // 8-pixel windows, a fraction of the atlas the paper's 32-pixel smallest windows would take, and
 // at the same texels per pixel their impostors agree with the geometry as well.
 TEST(CrowdRender, SmallCharactersTakeSmallWindows) {
   REQUIRE_GL();
-  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
-  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
-  auto m = load_model(path);
-  ASSERT_TRUE(m.ok());
+  LOAD_CESIUM_MAN(m);
   Crowd crowd(*m);
   for (int i = 0; i < 400; ++i) {  // a 20 x 20 grid, 120 to 158 m away
     const float x = -19.0f + 2.0f * static_cast<float>(i % 20), z = -120.0f - 2.0f * static_cast<float>(i / 20);
@@ -571,10 +605,7 @@ TEST(CrowdRender, SmallCharactersTakeSmallWindows) {
 // indices, the other split.
 TEST(CrowdRender, FlushesLeaveTheFramesAsTheyWere) {
   REQUIRE_GL();
-  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
-  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
-  auto m = load_model(path);
-  ASSERT_TRUE(m.ok());
+  LOAD_CESIUM_MAN(m);
   Crowd crowd = walker_ring(*m);
   const SceneCamera cam = ring_camera();
   auto target = OffscreenTarget::create(640, 512);
@@ -625,10 +656,7 @@ TEST(CrowdRender, FlushesLeaveTheFramesAsTheyWere) {
 // (a single-sampled target, as the flow test bed gives both paths at --msaa 1).
 TEST(CrowdRender, ShortLivedCharactersAreTheGeometrysPicture) {
   REQUIRE_GL();
-  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
-  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
-  auto m = load_model(path);
-  ASSERT_TRUE(m.ok());
+  LOAD_CESIUM_MAN(m);
   Crowd crowd = walker_ring(*m);
   const SceneCamera cam = ring_camera();
   auto target = OffscreenTarget::create(640, 512);
@@ -968,10 +996,7 @@ TEST(ImpostorEdges, BlendedImpostorsAloneNeedNoMultisampledTarget) {
 // The crowd of CrowdRender in a 4x multisampled target, as the flow test bed draws it.
 TEST(CrowdRender, MultisampledImpostorFramesMatchGeometryFrames) {
   REQUIRE_GL();
-  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
-  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
-  auto m = load_model(path);
-  ASSERT_TRUE(m.ok());
+  LOAD_CESIUM_MAN(m);
   Crowd crowd = walker_ring(*m);
   const ImpostorConfig cfg = refresh_always();
   FramePlanner planner(*m, cfg);
@@ -1007,10 +1032,7 @@ TEST(CrowdRender, MultisampledImpostorFramesMatchGeometryFrames) {
 // moves they follow it without a new snapshot, where baked snapshots keep the old light.
 TEST(CrowdRender, RelitImpostorsFollowTheLightWithoutNewSnapshots) {
   REQUIRE_GL();
-  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
-  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
-  auto m = load_model(path);
-  ASSERT_TRUE(m.ok());
+  LOAD_CESIUM_MAN(m);
   Crowd crowd = walker_ring(*m);
   const SceneCamera cam = ring_camera();
   const glm::vec3 moved(-0.8f, 0.3f, -0.5f);
@@ -1067,10 +1089,7 @@ TEST(CrowdRender, RelitImpostorsFollowTheLightWithoutNewSnapshots) {
 // the same rectangles: the same checks hold and the frames are the same to the bit.
 TEST(CrowdRender, QuadsFittedToTheCoverageHoldEveryCoveredTexel) {
   REQUIRE_GL();
-  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
-  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
-  auto m = load_model(path);
-  ASSERT_TRUE(m.ok());
+  LOAD_CESIUM_MAN(m);
   Crowd crowd = walker_ring(*m);
   // One frame with every impostor refreshed; with fitted quads, also checks each rectangle.
   // Depth-corrected part cards: the rectangles come from the plane offsets' mask, in the pass that
@@ -1152,10 +1171,7 @@ TEST(CrowdRender, QuadsFittedToTheCoverageHoldEveryCoveredTexel) {
 // the pass.
 TEST(CrowdRender, QuadsFittedFromTheVerticesHoldEveryCoveredTexel) {
   REQUIRE_GL();
-  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
-  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
-  auto m = load_model(path);
-  ASSERT_TRUE(m.ok());
+  LOAD_CESIUM_MAN(m);
   Crowd crowd = walker_ring(*m);
   for (auto [tpp, cards] : {std::pair{1.0f, false}, std::pair{2.0f, false}, std::pair{1.0f, true}}) {
     std::vector<std::uint8_t> images[2];
@@ -1231,10 +1247,7 @@ TEST(CrowdRender, QuadsFittedFromTheVerticesHoldEveryCoveredTexel) {
 // frames agree to rounding where the free snapshot camera resamples (~23 dB above).
 TEST(CrowdRender, AlignedMultisampledSnapshotsCopyTheGeometry) {
   REQUIRE_GL();
-  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
-  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
-  auto m = load_model(path);
-  ASSERT_TRUE(m.ok());
+  LOAD_CESIUM_MAN(m);
   Crowd crowd = walker_ring(*m);
   ImpostorConfig cfg = refresh_always();
   cfg.aligned_snapshots = true;
@@ -1274,10 +1287,7 @@ TEST(CrowdRender, AlignedMultisampledSnapshotsCopyTheGeometry) {
 // the cards agree with the geometry better than flat cards do.
 TEST(CrowdRender, DepthCorrectedCardsFollowTheParallax) {
   REQUIRE_GL();
-  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
-  if (!fs::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
-  auto m = load_model(path);
-  ASSERT_TRUE(m.ok());
+  LOAD_CESIUM_MAN(m);
   ASSERT_GT(m->body_parts().size(), 1u);
   Crowd crowd = walker_ring(*m);
   const SceneCamera a = ring_camera();

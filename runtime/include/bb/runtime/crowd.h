@@ -24,7 +24,7 @@ namespace bb::runtime {
 struct Character {
   glm::vec3 position{0.0f};  // world, metres (the model's origin goes here)
   float yaw = 0.0f;          // radians about +Y; 0 faces +Z
-  float scale = 1.0f;        // uniform
+  float scale = 1.0f;        // uniform; may change between frames (an impostor's quad scales with it)
   int clip = 0;              // index into Model::clips (ignored when the model has none)
   float phase = 0.0f;        // seconds added to the scene time
   float speed = 1.0f;        // playback rate
@@ -493,6 +493,7 @@ class FramePlanner {
     std::array<float, 4> posture{};
     glm::mat3 view{1.0f};
     float half_size = 0.0f;  // of the billboard, metres, from the last snapshot
+    float scale = 1.0f;      // the character's Character::scale then (its quad scales with it since)
     // Aligned snapshots: the window's centre minus Ta along the camera's right and up (metres);
     // the quad is then drawn parallel to the screen (`aligned`), else facing the eye.
     glm::vec2 offset{0.0f};
