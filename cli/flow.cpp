@@ -506,11 +506,12 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     // Whole impostors on a character of so few triangles gain nothing either: its quad and its
     // refreshes cost what drawing it does.
     if (const std::size_t tris = m->lods.empty() ? 0 : m->lods.front().indices.size() / 3;
-        !a.impostor_parts && tris > 0 && tris < kFewTrianglesPerPart)
+        !a.impostor_parts && tris > 0 && tris < runtime::kFewTriangles)
       model_lines.push_back(std::to_string(tris) +
                             " triangles at the finest level; an impostor (its quad and its refreshes) costs about what "
                             "drawing so few triangles does, so impostors gain little or nothing over geometry on this "
-                            "model (docs/flow.md)");
+                            "model, and --short-lived auto draws a character whose snapshot would be drawn once as "
+                            "geometry (docs/flow.md)");
     for (const std::string& n : model_lines) {
       if (!a.json) std::fprintf(stderr, "flow: note: %s: %s\n", path.c_str(), n.c_str());
       notes.push_back(path + ": " + n);
@@ -844,7 +845,7 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--msaa", a->msaa, "Samples per pixel of the scene window (1: none); the impostor path's too where its edges need them (see --impostor-target)")
       ->capture_default_str()->check(CLI::IsMember({1, 2, 4, 8}));
   cmd->add_option("--impostor-target", a->impostor_target,
-                  "The impostor path's target: auto (single-sampled where the edges blend: the same frames, less to write; on a GPU adaptive), adaptive (that, and --msaa samples for a frame after one that drew a short-lived character as geometry, which then keeps its antialiasing; with it --short-lived auto draws them), scene (--msaa samples) or single (one sample)")
+                  "The impostor path's target: auto (single-sampled where the edges blend: the same frames, less to write; on a GPU, or for a crowd with a model under 150 triangles, adaptive), adaptive (that, and --msaa samples for a frame after one that drew a short-lived character as geometry, which then keeps its antialiasing; with it --short-lived auto draws them), scene (--msaa samples) or single (one sample)")
       ->capture_default_str();
   cmd->add_option("--texels-per-pixel", a->texels_per_pixel, "Impostor window texels per screen pixel")
       ->capture_default_str()->check(finite_number(0.25, 4.0));
@@ -913,7 +914,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "Flush the drawing to the GPU after every N indices drawn into a single-sampled target, geometry and snapshots alike: auto (every 10000 on a software rasterizer such as llvmpipe, which then rasterizes the first characters while it shades the next ones' vertices: in single-sampled geometry passes of 20000 and more and snapshot passes of 60000 and more; never on a GPU), off, or N (any pass)")
       ->capture_default_str();
   cmd->add_option("--short-lived", a->short_lived,
-                  "A character whose cache test fires again in the frame after its snapshot (a snapshot drawn once never pays): geometry (drawn as geometry until a frame passes without the test firing), snapshot (refreshed every time) or auto (geometry where the character is then the geometry's own picture and a snapshot costs what drawing it does or more: with --msaa 1, with an adaptive impostor target, or on a GPU with the scene's samples; not with a refresh budget)")
+                  "A character whose cache test fires again in the frame after its snapshot (a snapshot drawn once never pays): geometry (drawn as geometry until a frame passes without the test firing), snapshot (refreshed every time) or auto (geometry where the character is then the geometry's own picture and a snapshot costs what drawing it does or more: with --msaa 1, with an adaptive impostor target, on a GPU with the scene's samples, or for a model under 150 triangles; not with a refresh budget)")
       ->capture_default_str();
   cmd->add_option("--planner-threads", a->planner_threads,
                   "Most threads planning each frame (0: one per hardware thread). A crowd is planned on threads from 512 units of work, one thread per 512 at most: a character is one unit (with part cards one a card), and each impostor the previous frame refreshed eight more; the plan is the same")

@@ -182,11 +182,12 @@ struct FlowResult {
 };
 
 // Below this many triangles a body part (part_triangles), `flow --impostor-parts` and `inspect` note that
-// part cards gain little over geometry, and below this many a character `flow` notes the same of whole
-// impostors: a card (its quad and its refreshes) costs about what drawing a few dozen triangles does (flow test bed, 8 degrees, posture off: SimpleSkin, 4 a part, 0.68x geometry's
+// part cards gain little over geometry, and below this many a character (runtime::kFewTriangles) `flow`
+// notes the same of whole impostors: a card (its quad and its refreshes) costs about what drawing a few
+// dozen triangles does (flow test bed, 8 degrees, posture off: SimpleSkin, 4 a part, 0.68x geometry's
 // speed; the Fox, 36, 1.6x; RiggedSimple, 94, 2.8x; CesiumMan, 292, 6.5x; whole impostors 1.0x / 7.5x /
 // 4.7x / 19x).
-constexpr std::size_t kFewTrianglesPerPart = 150;
+constexpr std::size_t kFewTrianglesPerPart = runtime::kFewTriangles;
 
 // Triangles a body part on average: the finest level's over Model::body_parts, rounded; 0 for a model
 // of one part (whole impostors only) or no level.

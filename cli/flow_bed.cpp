@@ -209,8 +209,17 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   // adaptive (auto on a GPU) draws the impostor frame into a target of the scene's samples after a
   // frame that drew such a character, else into the single-sampled one.
   const int blend_samples = impostor_target_samples(draw_options.edges, s.msaa);
-  const bool adaptive =
+  // A model of so few triangles that drawing a character costs less than its snapshot
+  // (kFewTriangles) draws its short-lived characters as geometry on a software rasterizer too, so
+  // auto takes the adaptive target there for a crowd with such a model.
+  auto finest_triangles = [&](int m) { return models[m]->lods.empty() ? std::size_t{0} : models[m]->lods.front().triangle_count(); };
+  auto few_triangles = [&](int m) { return finest_triangles(m) > 0 && finest_triangles(m) < kFewTriangles; };
+  bool few = false;
+  for (int m = 0; m < nm; ++m) few |= few_triangles(m);
+  // Adaptive as asked (or auto on a GPU), and for such a crowd.
+  const bool adaptive_asked =
       blend_samples < s.msaa && (s.impostor_target_samples < 0 || (s.impostor_target_samples == 0 && !software));
+  const bool adaptive = adaptive_asked || (blend_samples < s.msaa && s.impostor_target_samples == 0 && few);
   const int samples_i = s.impostor_target_samples > 0 ? s.impostor_target_samples : blend_samples;
   // auto: where a character drawn as geometry in an impostor frame is the geometry path's own
   // picture (the impostor target has the scene's samples, or adaptive), and a snapshot costs what
@@ -222,8 +231,18 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   // snapshots, 0.98-1.00 with geometry).
   scene.impostor_samples = samples_i;
   scene.adaptive_target = adaptive;
-  config.short_lived_as_geometry = s.short_lived > 0 || (s.short_lived < 0 && tuned_short_lived_as_geometry(scene));
-  out.short_lived_as_geometry = config.short_lived_as_geometry && s.refresh_budget == 0;
+  // Each model's (configs_for): a model of few triangles (kFewTriangles) draws them as geometry
+  // wherever that is the geometry's own picture; the others as they would without it in the crowd
+  // (the target adaptive only as asked).
+  TuningScene scene_asked = scene;
+  scene_asked.adaptive_target = adaptive_asked;
+  auto short_lived_of = [&](int m) {
+    return s.short_lived > 0 ||
+           (s.short_lived < 0 && tuned_short_lived_as_geometry(few_triangles(m) ? scene : scene_asked, finest_triangles(m)));
+  };
+  bool any_short_lived = false;
+  for (int m = 0; m < nm; ++m) any_short_lived |= short_lived_of(m);
+  out.short_lived_as_geometry = any_short_lived && s.refresh_budget == 0;
   // One renderer, planner and crowd per model; human i is of model i % models.size().
   std::vector<std::unique_ptr<Renderer>> renderers;
   std::vector<Renderer*> renderer_ptrs;  // the same, for Renderer::draw_many
@@ -240,6 +259,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
     std::vector<ImpostorConfig> cs;
     for (int m = 0, first_page = 0; m < nm; ++m) {
       ImpostorConfig c = config;
+      c.short_lived_as_geometry = short_lived_of(m);
       c.max_pages = pages_of(m);
       c.first_page = share ? first_page : 0;
       c.atlas_pages = share ? shared_pages : 0;

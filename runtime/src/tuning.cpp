@@ -33,6 +33,19 @@ bool tuned_short_lived_as_geometry(const TuningScene& s) {
   return s.adaptive_target || (target == s.samples && (s.samples == 1 || !s.software));
 }
 
+bool tuned_short_lived_as_geometry(const TuningScene& s, std::size_t triangles) {
+  if (tuned_short_lived_as_geometry(s)) return true;
+  const int target = s.impostor_samples > 0 ? s.impostor_samples : s.samples;
+  return triangles > 0 && triangles < kFewTriangles && (s.adaptive_target || target == s.samples);
+}
+
+ImpostorConfig tuned_config(ImpostorConfig base, const TuningScene& scene, const Model& model) {
+  ImpostorConfig c = tuned_config(base, scene);
+  c.short_lived_as_geometry =
+      tuned_short_lived_as_geometry(scene, model.lods.empty() ? std::size_t{0} : model.lods.front().triangle_count());
+  return c;
+}
+
 ImpostorConfig tuned_config(ImpostorConfig base, const TuningScene& scene) {
   ImpostorConfig c = base;
   c.aligned_snapshots = tuned_aligned_snapshots(c, scene);

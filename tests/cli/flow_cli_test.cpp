@@ -803,6 +803,21 @@ TEST(FlowCli, PartCardsOnFewTrianglesAPartAreNoted) {
   ASSERT_TRUE(js.contains("model_notes")) << ss.text;
   EXPECT_NE(js["model_notes"].dump().find("8 triangles at the finest level; an impostor"), std::string::npos)
       << js["model_notes"].dump();
+  // Its worst case (every character refreshed every frame): short-lived characters drawn as geometry
+  // into the adaptive target (runtime::kFewTriangles), so the impostor frames are the geometry's own
+  // pictures; the Fox's 576 triangles keep their snapshots.
+  for (const std::string model : {"SimpleSkin.gltf", "Fox.glb"}) {
+    Out w = run("flow --model " + dir + model + " --posture 0 --view 0 --frames 3 --humans 4 --size 320x256 --json -o " +
+                d.string());
+    ASSERT_EQ(w.status, 0) << w.text;
+    const auto jw = nlohmann::json::parse(last_json_line(w.text));
+    const bool few = model == "SimpleSkin.gltf";
+    EXPECT_EQ(jw["short_lived"], few ? "geometry" : "snapshot") << model;
+    if (few) {
+      EXPECT_GT(jw["impostor_multisampled_frames"].get<double>(), 0.0);
+      EXPECT_GT(jw["psnr_db"].get<double>(), 60.0);
+    }
+  }
   // inspect lists the parts: the Fox's 16, their skin shares summing to one, and says they are few.
   Out i = run("inspect " + dir + "Fox.glb --json");
   ASSERT_EQ(i.status, 0) << i.text;

@@ -94,6 +94,21 @@ TEST(Tuning, ScaleQuadFitAndShortLivedFollowTheScene) {
   EXPECT_FALSE(tuned_short_lived_as_geometry({.samples = 4, .impostor_samples = 1}));
   EXPECT_TRUE(tuned_short_lived_as_geometry({.samples = 4, .impostor_samples = 1, .adaptive_target = true}));
   EXPECT_FALSE(tuned_short_lived_as_geometry({.samples = 4, .software = true, .impostor_samples = 1}));
+  // A model of fewer than kFewTriangles (SimpleSkin's 8): geometry wherever that is the geometry's own
+  // picture, a software rasterizer's multisampled scene too; not into a single-sampled target of a
+  // multisampled scene unless adaptive. 0 triangles: not known, the scene's rule.
+  EXPECT_TRUE(tuned_short_lived_as_geometry({.samples = 4, .software = true}, 8));
+  EXPECT_FALSE(tuned_short_lived_as_geometry({.samples = 4, .software = true}, kFewTriangles));
+  EXPECT_FALSE(tuned_short_lived_as_geometry({.samples = 4, .software = true}, 0));
+  EXPECT_FALSE(tuned_short_lived_as_geometry({.samples = 4, .software = true, .impostor_samples = 1}, 8));
+  EXPECT_TRUE(tuned_short_lived_as_geometry({.samples = 4, .software = true, .impostor_samples = 1, .adaptive_target = true}, 8));
+  EXPECT_TRUE(tuned_short_lived_as_geometry({.samples = 4}, 5000));  // the scene's rule still holds
+  Model strip;
+  strip.lods.resize(1);
+  strip.lods[0].indices.assign(3 * 8, 0);
+  EXPECT_TRUE(tuned_config({}, {.samples = 4, .software = true}, strip).short_lived_as_geometry);
+  strip.lods[0].indices.assign(3 * 576, 0);
+  EXPECT_FALSE(tuned_config({}, {.samples = 4, .software = true}, strip).short_lived_as_geometry);
 }
 
 }  // namespace

@@ -10,6 +10,8 @@
 // tuned_config: the grid, then the taps, then the phase). Pure functions: no GL call.
 #pragma once
 
+#include <cstddef>
+
 #include "bb/runtime/crowd.h"
 #include "bb/runtime/renderer.h"
 
@@ -71,7 +73,23 @@ bool tuned_fit_from_vertices(const ImpostorConfig& c, const TuningScene& s);
 // a software rasterizer a multisampled scene's single-sampled snapshot is the cheaper.
 bool tuned_short_lived_as_geometry(const TuningScene& s);
 
-// `base` with every field above tuned for `scene`.
+// A character of fewer triangles than this at its finest level costs less to draw than its impostor:
+// a quad and its refreshes cost about what drawing a few dozen triangles does (flow test bed,
+// llvmpipe: SimpleSkin, 8 triangles, 1.1-1.3x geometry's speed at 5 / 8 / 17 degrees and its worst
+// case 1.22 of geometry's time with snapshots; the Fox's 576 and RiggedSimple's 188 4-8x).
+inline constexpr std::size_t kFewTriangles = 150;
+
+// tuned_short_lived_as_geometry for a model of `triangles` triangles at its finest level (0: not
+// known): also,
+// for one of fewer than kFewTriangles, wherever a character drawn as geometry is the geometry's own
+// picture (the impostors' target has the scene's samples, or is adaptive) on a software rasterizer
+// too, a snapshot of so few triangles costing more than drawing them (SimpleSkin's worst case, 4x,
+// adaptive target: 0.98-1.06x geometry's speed against 0.66-0.73x with snapshots).
+bool tuned_short_lived_as_geometry(const TuningScene& s, std::size_t triangles);
+
+// `base` with every field above tuned for `scene` (and, given the model, short_lived_as_geometry for
+// its triangles).
 ImpostorConfig tuned_config(ImpostorConfig base, const TuningScene& scene);
+ImpostorConfig tuned_config(ImpostorConfig base, const TuningScene& scene, const Model& model);
 
 }  // namespace bb::runtime
