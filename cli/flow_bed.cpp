@@ -212,7 +212,9 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   // A model of so few triangles that drawing a character costs less than its snapshot
   // (kFewTriangles) draws its short-lived characters as geometry on a software rasterizer too, so
   // auto takes the adaptive target there for a crowd with such a model.
-  auto finest_triangles = [&](int m) { return models[m]->lods.empty() ? std::size_t{0} : models[m]->lods.front().triangle_count(); };
+  auto finest_triangles = [&](int m) {
+    return models[m]->lods.empty() ? std::size_t{0} : models[m]->lods.front().triangle_count();
+  };
   auto few_triangles = [&](int m) { return finest_triangles(m) > 0 && finest_triangles(m) < kFewTriangles; };
   bool few = false;
   for (int m = 0; m < nm; ++m) few |= few_triangles(m);
@@ -237,8 +239,8 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   TuningScene scene_asked = scene;
   scene_asked.adaptive_target = adaptive_asked;
   auto short_lived_of = [&](int m) {
-    return s.short_lived > 0 ||
-           (s.short_lived < 0 && tuned_short_lived_as_geometry(few_triangles(m) ? scene : scene_asked, finest_triangles(m)));
+    const TuningScene& sc = few_triangles(m) ? scene : scene_asked;
+    return s.short_lived > 0 || (s.short_lived < 0 && tuned_short_lived_as_geometry(sc, finest_triangles(m)));
   };
   bool any_short_lived = false;
   for (int m = 0; m < nm; ++m) any_short_lived |= short_lived_of(m);

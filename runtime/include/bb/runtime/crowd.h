@@ -52,9 +52,9 @@ class Crowd {
     }
     return static_cast<int>(characters_.size()) - 1;
   }
-  // Removes character i (< size()) in constant time: the last character takes its index (the order of the
-  // others is not kept; to keep it, erase from characters()). Its impostor windows go back to the
-  // atlas at the next frame planned.
+  // Removes character i (< size()) in constant time: the last character takes its index (the order
+  // of the others is not kept; to keep it, erase from characters()). Its impostor windows go back to
+  // the atlas at the next frame planned.
   void remove(std::size_t i) {
     assert(i < characters_.size());
     if (i + 1 < characters_.size()) characters_[i] = characters_.back();
