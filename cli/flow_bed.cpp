@@ -215,7 +215,13 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   auto finest_triangles = [&](int m) {
     return models[m]->lods.empty() ? std::size_t{0} : models[m]->lods.front().triangle_count();
   };
-  auto few_triangles = [&](int m) { return finest_triangles(m) > 0 && finest_triangles(m) < kFewTriangles; };
+  // A snapshot's triangles: a character's at its finest level, or with part cards a card's (its
+  // part's on average, part_triangles).
+  auto snapshot_triangles = [&](int m) {
+    const std::size_t each = s.part_cards ? part_triangles(*models[m]) : 0;
+    return each > 0 ? each : finest_triangles(m);
+  };
+  auto few_triangles = [&](int m) { return snapshot_triangles(m) > 0 && snapshot_triangles(m) < kFewTriangles; };
   bool few = false;
   for (int m = 0; m < nm; ++m) few |= few_triangles(m);
   // Adaptive as asked (or auto on a GPU), and for such a crowd.
@@ -240,7 +246,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   scene_asked.adaptive_target = adaptive_asked;
   auto short_lived_of = [&](int m) {
     const TuningScene& sc = few_triangles(m) ? scene : scene_asked;
-    return s.short_lived > 0 || (s.short_lived < 0 && tuned_short_lived_as_geometry(sc, finest_triangles(m)));
+    return s.short_lived > 0 || (s.short_lived < 0 && tuned_short_lived_as_geometry(sc, snapshot_triangles(m)));
   };
   bool any_short_lived = false;
   for (int m = 0; m < nm; ++m) any_short_lived |= short_lived_of(m);

@@ -41,8 +41,10 @@ bool tuned_short_lived_as_geometry(const TuningScene& s, std::size_t triangles) 
 
 ImpostorConfig tuned_config(ImpostorConfig base, const TuningScene& scene, const Model& model) {
   ImpostorConfig c = tuned_config(base, scene);
-  c.short_lived_as_geometry =
-      tuned_short_lived_as_geometry(scene, model.lods.empty() ? std::size_t{0} : model.lods.front().triangle_count());
+  std::size_t triangles = model.lods.empty() ? std::size_t{0} : model.lods.front().triangle_count();
+  const std::size_t parts = model.body_parts().size();
+  if (c.part_cards && parts > 1) triangles = (triangles + parts / 2) / parts;  // a card's
+  c.short_lived_as_geometry = tuned_short_lived_as_geometry(scene, triangles);
   return c;
 }
 

@@ -2,6 +2,9 @@
 // options meet (FlowCli.TwoTapsComeCloseToFourInAMultisampledScene checks the same through the CLI).
 #include "bb/runtime/tuning.h"
 
+#include <filesystem>
+#include <string>
+
 #include <gtest/gtest.h>
 
 namespace bb::runtime {
@@ -109,6 +112,19 @@ TEST(Tuning, ScaleQuadFitAndShortLivedFollowTheScene) {
   EXPECT_TRUE(tuned_config({}, {.samples = 4, .software = true}, strip).short_lived_as_geometry);
   strip.lods[0].indices.assign(3 * 576, 0);
   EXPECT_FALSE(tuned_config({}, {.samples = 4, .software = true}, strip).short_lived_as_geometry);
+}
+
+// With part cards the triangles are a card's (its part's on average): the Fox's 576 in 16 parts.
+TEST(Tuning, PartCardsCountTheirPartsTriangles) {
+  const std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/Fox.glb";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
+  auto fox = load_model(path);
+  ASSERT_TRUE(fox.ok()) << fox.error().message();
+  ASSERT_EQ(fox->lods.front().triangle_count(), 576u);
+  ASSERT_EQ(fox->body_parts().size(), 16u);
+  const TuningScene sw{.samples = 4, .software = true};
+  EXPECT_FALSE(tuned_config({}, sw, *fox).short_lived_as_geometry);
+  EXPECT_TRUE(tuned_config({.part_cards = true}, sw, *fox).short_lived_as_geometry);
 }
 
 }  // namespace

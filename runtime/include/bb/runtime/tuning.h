@@ -88,7 +88,9 @@ inline constexpr std::size_t kFewTriangles = 150;
 bool tuned_short_lived_as_geometry(const TuningScene& s, std::size_t triangles);
 
 // `base` with every field above tuned for `scene` (and, given the model, short_lived_as_geometry for
-// its triangles).
+// its triangles at its finest level; with part cards, a part's on average, a card's snapshot costing
+// what its part's triangles do: the Fox's 16 parts of 36 triangles, worst case 0.46x geometry's speed
+// with snapshots, 1.04x with geometry in the adaptive target; RiggedSimple's 2 of 94, 0.80x and 1.00x).
 ImpostorConfig tuned_config(ImpostorConfig base, const TuningScene& scene);
 ImpostorConfig tuned_config(ImpostorConfig base, const TuningScene& scene, const Model& model);
 
