@@ -15,36 +15,12 @@
 #include "bb/runtime/headless.h"
 #include "bb/runtime/portrait.h"
 #include "bb/runtime/renderer.h"
+#include "gl_context.h"
 
 namespace bb::runtime {
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string& context_error() {
-  static std::string why;
-  return why;
-}
-
-HeadlessContext* context() {
-  static std::unique_ptr<HeadlessContext> ctx;
-  std::string& why = context_error();
-  static bool tried = false;
-  if (!tried) {
-    tried = true;
-    auto r = HeadlessContext::create();
-    if (r) {
-      ctx = std::move(*r);
-      std::printf("GL context: %s\n", ctx->description().c_str());
-    } else {
-      why = r.error().message();
-    }
-  }
-  return ctx.get();
-}
-
-#define REQUIRE_GL()                                                              \
-  if (!context()) GTEST_SKIP() << "no headless OpenGL context: " << context_error()
 
 // `m` = the shared CesiumMan (a Result<Model>, loaded from `path`), or the test skips where
 // ../shared/data is absent.
