@@ -5,6 +5,7 @@
 #include <cstring>
 #include <filesystem>
 #include <map>
+#include <random>
 #include <set>
 #include <tuple>
 
@@ -488,6 +489,66 @@ TEST(FramePlanner, ScaledCharactersQuadsScaleWithThem) {
     // The quad's centre keeps its place relative to Ta, scaled.
     expect_vec3(glm::vec3(b1.ta_half) - ta1, 1.1f * (glm::vec3(b0.ta_half) - ta0), 1e-5f);
     if (aligned) expect_vec3(glm::vec3(b1.axis_x), 1.1f * glm::vec3(b0.axis_x), 1e-5f);
+  }
+}
+
+// A crowd a game changes at random, frame after frame (seeded): characters removed, erased, shuffled
+// and added, with their own ids or the crowd's. Standing still before a still camera, only the new
+// ones take snapshots, every old one keeps the window it had, and the atlas holds a window a
+// character, no more.
+TEST(FramePlanner, RandomCrowdChangesKeepEveryCharactersWindow) {
+  Model m = tiny_model();
+  Crowd crowd(m);
+  std::mt19937 rng(7);
+  std::uint32_t next_own = 1000;
+  auto add_one = [&](bool own_id) {
+    Character c{glm::vec3(std::uniform_real_distribution<float>(-8.0f, 8.0f)(rng), 0,
+                          std::uniform_real_distribution<float>(-4.0f, 4.0f)(rng)),
+                0.0f, 1.0f, 0, 0.0f, 0.0f};
+    c.id = own_id ? next_own++ : 0u;
+    crowd.add(c);
+  };
+  for (int i = 0; i < 12; ++i) add_one(i % 2 == 0);
+  FramePlanner planner(m, view_test_only(8.0f));
+  const SceneCamera cam = facing_camera(40.0f);
+  std::map<std::uint32_t, glm::vec4> window_of;  // by id, since its snapshot
+  for (int f = 0; f < 200; ++f) {
+    int added = 0;
+    if (f > 0) {
+      auto any = [&] { return std::uniform_int_distribution<std::size_t>(0, crowd.size() - 1)(rng); };
+      const int op = std::uniform_int_distribution<int>(0, 4)(rng);
+      if (op == 0 && crowd.size() > 2) {
+        crowd.remove(any());
+      } else if (op == 1 && crowd.size() > 2) {
+        crowd.characters().erase(crowd.characters().begin() + static_cast<std::ptrdiff_t>(any()));
+      } else if (op == 2) {
+        std::shuffle(crowd.characters().begin(), crowd.characters().end(), rng);
+      } else if (op >= 3 && crowd.size() < 24) {
+        add_one(f % 3 == 0);
+        ++added;
+      }
+    }
+    const FramePlan& p = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor);
+    ASSERT_EQ(p.billboards.size(), crowd.size()) << "frame " << f;
+    EXPECT_EQ(p.stats.snapshots, f == 0 ? static_cast<int>(crowd.size()) : added) << "frame " << f;
+    EXPECT_EQ(planner.atlas().windows_used(), static_cast<int>(crowd.size())) << "frame " << f;
+    // Each billboard's character: the one whose Ta it is drawn at.
+    std::map<std::pair<long, long>, std::uint32_t> id_at;
+    auto key = [](const glm::vec3& ta) { return std::make_pair(std::lround(ta.x * 1e3f), std::lround(ta.z * 1e3f)); };
+    for (std::size_t i = 0; i < crowd.size(); ++i) id_at[key(character_ta(m, crowd[i], 0.0f))] = crowd[i].id;
+    ASSERT_EQ(id_at.size(), crowd.size());
+    std::map<std::uint32_t, glm::vec4> now;
+    for (const BillboardGpu& b : p.billboards) {
+      const glm::vec4 w(b.uv_rect.x + b.layer.x * 10.0f, b.uv_rect.y, b.uv_rect.z, b.uv_rect.w);
+      const auto found = id_at.find(key(glm::vec3(b.ta_half)));
+      ASSERT_NE(found, id_at.end()) << "frame " << f;
+      const std::uint32_t id = found->second;
+      if (const auto it = window_of.find(id); it != window_of.end()) {
+        EXPECT_EQ(w, it->second) << "frame " << f << ", character " << id;
+      }
+      now[id] = w;
+    }
+    window_of = now;
   }
 }
 
