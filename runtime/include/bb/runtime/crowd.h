@@ -666,13 +666,14 @@ class FramePlanner {
   AtlasAllocator atlas_;
   std::vector<CacheState> cache_;
   std::vector<PartCache> part_cache_;  // [character * parts + part] when part cards are on
-  // follow_ids' scratch: the slots in their new order, which old slots are taken and which
-  // characters placed, the other slots by owner.
+  // follow_ids' scratch: the slots in their new order, each character's old slot, which old slots
+  // are taken, the others by owner (an open-addressed table).
   struct Follow {
     std::vector<CacheState> cache;
     std::vector<PartCache> parts;
-    std::vector<std::uint8_t> taken, placed;
-    std::vector<std::pair<std::uint32_t, std::uint32_t>> by_owner;
+    std::vector<std::uint32_t> from;
+    std::vector<std::uint8_t> taken;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> table;
   };
   Follow follow_;
   int parts_ = 1;                      // parts per character (1: ordinary impostors)
