@@ -505,7 +505,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
                             "this model, and whole impostors are the faster (docs/flow.md)");
     // Whole impostors on a character of so few triangles gain nothing either: its quad and its
     // refreshes cost what drawing it does.
-    if (const std::size_t tris = m->lods.empty() ? 0 : m->lods.front().indices.size() / 3;
+    if (const std::size_t tris = runtime::snapshot_triangles(*m, false);
         !a.impostor_parts && tris > 0 && tris < runtime::kFewTriangles)
       model_lines.push_back(std::to_string(tris) +
                             " triangles at the finest level; an impostor (its quad and its refreshes) costs about what "

@@ -123,9 +123,7 @@ std::vector<glm::vec4> refreshed_boxes(std::span<const runtime::FramePlan* const
 }  // namespace
 
 std::size_t part_triangles(const runtime::Model& m) {
-  const std::size_t parts = m.body_parts().size();
-  if (parts < 2 || m.lods.empty()) return 0;
-  return (m.lods.front().indices.size() / 3 + parts / 2) / parts;
+  return m.body_parts().size() < 2 ? 0 : runtime::snapshot_triangles(m, true);
 }
 
 runtime::ImpostorEdges edges_of(const std::string& impostor_edges) {
@@ -212,16 +210,9 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   // A model of so few triangles that drawing a character costs less than its snapshot
   // (kFewTriangles) draws its short-lived characters as geometry on a software rasterizer too, so
   // auto takes the adaptive target there for a crowd with such a model.
-  auto finest_triangles = [&](int m) {
-    return models[m]->lods.empty() ? std::size_t{0} : models[m]->lods.front().triangle_count();
-  };
-  // A snapshot's triangles: a character's at its finest level, or with part cards a card's (its
-  // part's on average, part_triangles).
-  auto snapshot_triangles = [&](int m) {
-    const std::size_t each = s.part_cards ? part_triangles(*models[m]) : 0;
-    return each > 0 ? each : finest_triangles(m);
-  };
-  auto few_triangles = [&](int m) { return snapshot_triangles(m) > 0 && snapshot_triangles(m) < kFewTriangles; };
+  // A snapshot's triangles: a character's, or with part cards a card's (runtime::snapshot_triangles).
+  auto triangles_of = [&](int m) { return snapshot_triangles(*models[m], s.part_cards); };
+  auto few_triangles = [&](int m) { return triangles_of(m) > 0 && triangles_of(m) < kFewTriangles; };
   bool few = false;
   for (int m = 0; m < nm; ++m) few |= few_triangles(m);
   // Adaptive as asked (or auto on a GPU), and for such a crowd.
@@ -246,7 +237,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   scene_asked.adaptive_target = adaptive_asked;
   auto short_lived_of = [&](int m) {
     const TuningScene& sc = few_triangles(m) ? scene : scene_asked;
-    return s.short_lived > 0 || (s.short_lived < 0 && tuned_short_lived_as_geometry(sc, snapshot_triangles(m)));
+    return s.short_lived > 0 || (s.short_lived < 0 && tuned_short_lived_as_geometry(sc, triangles_of(m)));
   };
   bool any_short_lived = false;
   for (int m = 0; m < nm; ++m) any_short_lived |= short_lived_of(m);

@@ -852,8 +852,7 @@ std::size_t FramePlanner::begin_frame(const Crowd& crowd, const SceneCamera& cam
       if (part_cache_[k].window.valid()) atlas_.release(part_cache_[k].window);
     part_cache_.resize(n * parts_);
   }
-  if (cache_.size() < n) cache_.resize(n);
-  if (cache_.size() > n) {  // characters removed: give their windows back
+  if (cache_.size() > n) {  // characters removed at the end (follow_ids grew it): give their windows back
     for (std::size_t i = n; i < cache_.size(); ++i)
       if (cache_[i].window.valid()) atlas_.release(cache_[i].window);
     cache_.resize(n);

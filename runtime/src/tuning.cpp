@@ -28,23 +28,31 @@ bool tuned_fit_from_vertices(const ImpostorConfig& c, const TuningScene& s) {
   return c.fit_quads_to_coverage && !c.parallax_cards && s.software;
 }
 
+namespace {
+// Whether the impostors' target has the scene's samples (its own, or the scene's).
+bool target_has_scene_samples(const TuningScene& s) {
+  return (s.impostor_samples > 0 ? s.impostor_samples : s.samples) == s.samples;
+}
+}  // namespace
+
 bool tuned_short_lived_as_geometry(const TuningScene& s) {
-  const int target = s.impostor_samples > 0 ? s.impostor_samples : s.samples;
-  return s.adaptive_target || (target == s.samples && (s.samples == 1 || !s.software));
+  return s.adaptive_target || (target_has_scene_samples(s) && (s.samples == 1 || !s.software));
+}
+
+std::size_t snapshot_triangles(const Model& model, bool part_cards) {
+  const std::size_t triangles = model.lods.empty() ? std::size_t{0} : model.lods.front().triangle_count();
+  const std::size_t parts = part_cards ? model.body_parts().size() : 0;
+  return parts > 1 ? (triangles + parts / 2) / parts : triangles;
 }
 
 bool tuned_short_lived_as_geometry(const TuningScene& s, std::size_t triangles) {
   if (tuned_short_lived_as_geometry(s)) return true;
-  const int target = s.impostor_samples > 0 ? s.impostor_samples : s.samples;
-  return triangles > 0 && triangles < kFewTriangles && (s.adaptive_target || target == s.samples);
+  return triangles > 0 && triangles < kFewTriangles && (s.adaptive_target || target_has_scene_samples(s));
 }
 
 ImpostorConfig tuned_config(ImpostorConfig base, const TuningScene& scene, const Model& model) {
   ImpostorConfig c = tuned_config(base, scene);
-  std::size_t triangles = model.lods.empty() ? std::size_t{0} : model.lods.front().triangle_count();
-  const std::size_t parts = model.body_parts().size();
-  if (c.part_cards && parts > 1) triangles = (triangles + parts / 2) / parts;  // a card's
-  c.short_lived_as_geometry = tuned_short_lived_as_geometry(scene, triangles);
+  c.short_lived_as_geometry = tuned_short_lived_as_geometry(scene, snapshot_triangles(model, c.part_cards));
   return c;
 }
 

@@ -395,13 +395,15 @@ TEST(FramePlanner, CacheTestsDriveSnapshots) {
   EXPECT_EQ(planner.plan(crowd, cam, 0.26f, RenderMode::kImpostor).stats.snapshots, 5);
 }
 
-// Each billboard's window (page and uv rectangle) by its character's x (the characters stand in a
-// row, so x names them).
+// A billboard's atlas window, as one value: its page and uv rectangle.
+glm::vec4 window_of(const BillboardGpu& b) {
+  return glm::vec4(b.uv_rect.x + b.layer.x * 10.0f, b.uv_rect.y, b.uv_rect.z, b.uv_rect.w);
+}
+
+// Each billboard's window by its character's x (the characters stand in a row, so x names them).
 std::map<int, glm::vec4> windows_by_x(const FramePlan& plan) {
   std::map<int, glm::vec4> out;
-  for (const BillboardGpu& b : plan.billboards)
-    out[static_cast<int>(std::lround(b.ta_half.x * 10.0f))] =
-        glm::vec4(b.uv_rect.x + b.layer.x * 10.0f, b.uv_rect.y, b.uv_rect.z, b.uv_rect.w);
+  for (const BillboardGpu& b : plan.billboards) out[static_cast<int>(std::lround(b.ta_half.x * 10.0f))] = window_of(b);
   return out;
 }
 
@@ -511,7 +513,7 @@ TEST(FramePlanner, RandomCrowdChangesKeepEveryCharactersWindow) {
   for (int i = 0; i < 12; ++i) add_one(i % 2 == 0);
   FramePlanner planner(m, view_test_only(8.0f));
   const SceneCamera cam = facing_camera(40.0f);
-  std::map<std::uint32_t, glm::vec4> window_of;  // by id, since its snapshot
+  std::map<std::uint32_t, glm::vec4> known;  // each character's window by id, since its snapshot
   for (int f = 0; f < 200; ++f) {
     int added = 0;
     if (f > 0) {
@@ -539,16 +541,16 @@ TEST(FramePlanner, RandomCrowdChangesKeepEveryCharactersWindow) {
     ASSERT_EQ(id_at.size(), crowd.size());
     std::map<std::uint32_t, glm::vec4> now;
     for (const BillboardGpu& b : p.billboards) {
-      const glm::vec4 w(b.uv_rect.x + b.layer.x * 10.0f, b.uv_rect.y, b.uv_rect.z, b.uv_rect.w);
+      const glm::vec4 w = window_of(b);
       const auto found = id_at.find(key(glm::vec3(b.ta_half)));
       ASSERT_NE(found, id_at.end()) << "frame " << f;
       const std::uint32_t id = found->second;
-      if (const auto it = window_of.find(id); it != window_of.end()) {
+      if (const auto it = known.find(id); it != known.end()) {
         EXPECT_EQ(w, it->second) << "frame " << f << ", character " << id;
       }
       now[id] = w;
     }
-    window_of = now;
+    known = now;
   }
 }
 
@@ -1426,9 +1428,8 @@ TEST(BodyParts, CardsFollowTheirCharactersWhenTheCrowdChanges) {
   auto windows = [](const FramePlan& p) {
     std::map<std::pair<int, int>, glm::vec4> out;
     for (std::size_t k = 0; k < p.billboards.size(); ++k) {
-      const BillboardGpu& b = p.billboards[k];
       out[{static_cast<int>(std::lround(p.billboards[k - k % 2].ta_half.x)), static_cast<int>(k % 2)}] =
-          glm::vec4(b.uv_rect.x + b.layer.x * 10.0f, b.uv_rect.y, b.uv_rect.z, b.uv_rect.w);
+          window_of(p.billboards[k]);
     }
     return out;
   };

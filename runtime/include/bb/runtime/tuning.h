@@ -79,6 +79,11 @@ bool tuned_short_lived_as_geometry(const TuningScene& s);
 // case 1.22 of geometry's time with snapshots; the Fox's 576 and RiggedSimple's 188 4-8x).
 inline constexpr std::size_t kFewTriangles = 150;
 
+// The triangles a snapshot of `model` draws, as the rule below counts them: its finest level's, or
+// with part cards a part's on average (rounded; the finest level's for a model of one part); 0 for
+// a model with no level.
+std::size_t snapshot_triangles(const Model& model, bool part_cards);
+
 // tuned_short_lived_as_geometry for a model of `triangles` triangles at its finest level (0: not
 // known): also,
 // for one of fewer than kFewTriangles, wherever a character drawn as geometry is the geometry's own
