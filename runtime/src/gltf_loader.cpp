@@ -303,6 +303,22 @@ constexpr int kUI = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
 constexpr int kB = TINYGLTF_COMPONENT_TYPE_BYTE;
 constexpr int kS = TINYGLTF_COMPONENT_TYPE_SHORT;
 
+// A triangle strip's or fan's indices as a triangle list, in glTF's order (a strip's odd triangles
+// swap their first two corners, so every triangle keeps the strip's winding); triangles with a
+// repeated corner (the degenerate ones that join strips) are dropped.
+std::vector<std::uint32_t> triangle_list(const std::vector<std::uint32_t>& in, bool fan) {
+  std::vector<std::uint32_t> out;
+  if (in.size() < 3) return out;
+  out.reserve(3 * (in.size() - 2));
+  for (std::size_t i = 0; i + 2 < in.size(); ++i) {
+    std::uint32_t a = fan ? in[i + 1] : in[i], b = fan ? in[i + 2] : in[i + 1], c = fan ? in[0] : in[i + 2];
+    if (!fan && i % 2 == 1) std::swap(a, b);
+    if (a == b || b == c || a == c) continue;
+    out.insert(out.end(), {a, b, c});
+  }
+  return out;
+}
+
 bool finite_all(const std::vector<double>& v) {
   return std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
 }
@@ -633,7 +649,9 @@ struct Builder {
     for (std::size_t pi = 0; pi < prims.size(); ++pi) {
       const tg::Primitive& p = prims[pi];
       std::string pw = mw + ".primitives[" + std::to_string(pi) + "]";
-      if (p.mode != -1 && p.mode != TINYGLTF_MODE_TRIANGLES) continue;  // points, lines, strips: not a skin
+      // Points and lines are not a skin; strips and fans are triangles and become a list (below).
+      const bool strip = p.mode == TINYGLTF_MODE_TRIANGLE_STRIP, fan = p.mode == TINYGLTF_MODE_TRIANGLE_FAN;
+      if (p.mode != -1 && p.mode != TINYGLTF_MODE_TRIANGLES && !strip && !fan) continue;
       auto attr = [&](const char* name) { auto it = p.attributes.find(name); return it == p.attributes.end() ? -1 : it->second; };
       int ap = attr("POSITION");
       if (ap < 0) return c.err(pw + ".attributes", "has no POSITION");
@@ -718,9 +736,10 @@ struct Builder {
         ind.resize(nv);
         for (std::size_t k = 0; k < nv; ++k) ind[k] = static_cast<std::uint32_t>(k);
       }
+      if (strip || fan) ind = triangle_list(ind, fan);
       ind.resize(ind.size() / 3 * 3);
       if (ind.empty()) continue;
-      if (nrm.empty() && p.indices >= 0) {
+      if (nrm.empty() && (p.indices >= 0 || strip || fan)) {
         // glTF: without normals a client computes flat ones, so every corner gets a vertex of its own.
         auto corners = [&](std::vector<double>& a, std::size_t comps, int sets_of) {
           std::vector<double> b(ind.size() * comps * sets_of);

@@ -224,6 +224,47 @@ TEST(GltfLoader, IndexedMeshWithoutNormalsIsFlatShaded) {
   expect_vec(v[4].position, {0, 0, 1});
 }
 
+// Triangle strips and fans (glTF modes 5 and 6) are triangles: each becomes a list in glTF's order,
+// a strip's odd triangles with their first two corners swapped so that all keep the strip's winding,
+// the degenerate triangles that join strips dropped. Points and lines (modes 0 to 3) are not a skin.
+TEST(GltfLoader, StripsAndFansBecomeTriangleLists) {
+  // A unit square's four corners and a fifth point; normals +Z so that nothing is made flat.
+  const std::vector<float> corners{0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0, 2, 0, 0};
+  const std::vector<float> normals{0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1};
+  auto indices_of = [&](int mode, const std::vector<std::uint16_t>& ind) {
+    GltfFile f;
+    const int pos = f.accessor(f.view(corners), kFloat, 5, "VEC3"), nrm = f.accessor(f.view(normals), kFloat, 5, "VEC3");
+    const int ia = ind.empty() ? -1 : f.accessor(f.view(ind), kUShort, static_cast<int>(ind.size()), "SCALAR");
+    f.mesh({{"POSITION", pos}, {"NORMAL", nrm}}, ia);
+    f.j["meshes"][0]["primitives"][0]["mode"] = mode;
+    auto m = load_model(f.write("mode" + std::to_string(mode) + "_" + std::to_string(ind.size())));
+    EXPECT_TRUE(m.ok()) << m.error().message();
+    return m.ok() ? m->lods[0].indices : std::vector<std::uint32_t>{};
+  };
+  using V = std::vector<std::uint32_t>;
+  // Non-indexed, the strip is the five vertices in order: 012, 213 (swapped), 234.
+  EXPECT_EQ(indices_of(5, {}), (V{0, 1, 2, 2, 1, 3, 2, 3, 4}));
+  EXPECT_EQ(indices_of(5, {0, 1, 2, 3}), (V{0, 1, 2, 2, 1, 3}));
+  // Two strips joined by repeating 3 and 4: the four degenerate triangles go.
+  EXPECT_EQ(indices_of(5, {0, 1, 2, 3, 3, 4, 4, 1, 2}), (V{0, 1, 2, 2, 1, 3, 4, 1, 2}));
+  // Fan around 0: 1 2 0, 2 3 0 (glTF's corner order: v[i+1], v[i+2], v[0]).
+  EXPECT_EQ(indices_of(6, {0, 1, 3, 2}), (V{1, 3, 0, 3, 2, 0}));
+  // Every triangle of the strip faces +Z, as the list's would: the winding is kept.
+  for (const V& ind : {indices_of(5, {1, 3, 0, 2})}) {
+    ASSERT_EQ(ind.size(), 6u);
+    for (std::size_t t = 0; t < ind.size(); t += 3) {
+      auto p = [&](std::uint32_t k) { return glm::vec3(corners[3 * k], corners[3 * k + 1], corners[3 * k + 2]); };
+      EXPECT_GT(glm::cross(p(ind[t + 1]) - p(ind[t]), p(ind[t + 2]) - p(ind[t])).z, 0.0f) << "triangle " << t / 3;
+    }
+  }
+  // Too short a strip has no triangle, and a model of nothing else has no level to load: an error.
+  GltfFile f;
+  const int pos = f.accessor(f.view(corners), kFloat, 5, "VEC3");
+  f.mesh({{"POSITION", pos}}, f.accessor(f.view(std::vector<std::uint16_t>{0, 1}), kUShort, 2, "SCALAR"));
+  f.j["meshes"][0]["primitives"][0]["mode"] = 5;
+  EXPECT_FALSE(load_model(f.write("short")).ok());
+}
+
 // glTF samplers: wrap modes and filters as the file gives them, glTF's defaults (repeat; trilinear where
 // it leaves the filters to the implementation) where it gives none; values outside the enumerations and
 // references to samplers that do not exist are errors naming the place.
