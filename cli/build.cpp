@@ -40,7 +40,8 @@ struct Job {
   std::string input;                 // file, or "default"
   std::shared_ptr<const modeler::Body> base;  // null when loading failed
   std::string load_error;
-  uint64_t seed = 0;                 // 0: the body itself; otherwise a variant
+  bool variant = false;              // false: the body itself; true: the variant of this seed
+  uint64_t seed = 0;
   std::string name;
   // results
   bool ok = false;
@@ -58,7 +59,7 @@ void run_job(Job& job, const BuildArgs& a) {
     finish();
     return;
   }
-  modeler::Body body = job.seed ? modeler::make_variant(*job.base, {.seed = job.seed}, job.name.substr(job.base->name.size()))
+  modeler::Body body = job.variant ? modeler::make_variant(*job.base, {.seed = job.seed}, job.name.substr(job.base->name.size()))
                                 : *job.base;
   job.name = body.name;
   exporter::BuildOptions opt;
@@ -126,11 +127,21 @@ int run(BuildArgs a) {
     std::cerr << "bodybuilder build: " << st.error().message() << "\n";
     return 1;
   }
-  for (const auto& m : a.motions)
-    if (!fs::exists(m)) {
-      std::cerr << "bodybuilder build: --motion: " << m << ": no such file\n";
+  // Each clip is named after its file (the glTF animation's name, what --clip picks): names must be
+  // valid UTF-8 and differ.
+  for (std::size_t k = 0; k < a.motions.size(); ++k) {
+    const std::string& m = a.motions[k];
+    std::error_code ec;
+    const char* why = !fs::exists(m, ec) ? "no such file" : fs::is_directory(m, ec) ? "is a folder, not a BVH file" : nullptr;
+    const std::string clip = fs::path(m).stem().string();
+    if (!why && !valid_utf8(clip)) why = "the clip is named after the file, and this file name is not valid UTF-8";
+    for (std::size_t e = 0; !why && e < k; ++e)
+      if (fs::path(a.motions[e]).stem().string() == clip) why = "the clip is named after the file, and an earlier --motion has the same name";
+    if (why) {
+      std::cerr << "bodybuilder build: --motion: " << m << ": " << why << "\n";
       return 2;
     }
+  }
   if (a.bodies.empty()) a.bodies.push_back("default");
   std::vector<Job> jobs;
   for (const auto& in : a.bodies) {
@@ -147,9 +158,30 @@ int run(BuildArgs a) {
     if (!a.variants_only || !base.base) jobs.push_back(base);  // a body that failed to load is reported anyway
     for (int v = 0; v < a.variants; ++v) {
       Job var = base;
+      var.variant = true;
       var.seed = a.seed + static_cast<uint64_t>(v);
       var.name = base.name + "_v" + std::to_string(var.seed);
       jobs.push_back(var);
+    }
+  }
+  // Two jobs writing one file (bodies named alike, or a body named like another's variant) would
+  // leave whichever finished last: the later ones fail instead, naming the earlier input.
+  {
+    std::vector<std::pair<std::string, std::string>> written;  // output file name, the job's input
+    for (Job& job : jobs) {
+      if (!job.base) continue;
+      std::vector<std::string> names{job.name + ".glb"};
+      for (int l = 0; a.per_lod && l < a.lods; ++l) names.push_back(job.name + "_lod" + std::to_string(l) + ".glb");
+      for (const auto& n : names)
+        for (const auto& [other, input] : written)
+          if (n == other && job.load_error.empty()) {
+            job.base.reset();
+            job.load_error = (job.input == "default" ? "" : job.input + ": ") + "would write " +
+                             (fs::path(a.out) / n).string() + ", as " + (input == "default" ? "the built-in body" : input) +
+                             " does (bodies with the same name; rename one)";
+          }
+      if (job.base)
+        for (const auto& n : names) written.emplace_back(n, job.input);
     }
   }
   int workers = a.jobs > 0 ? a.jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
@@ -185,7 +217,7 @@ int run(BuildArgs a) {
                          {"clips", job.times.clips}, {"encode", job.times.encode}};
         nlohmann::ordered_json lods = nlohmann::ordered_json::array();
         for (const auto& r : job.lods)
-          lods.push_back({{"triangles", r.triangles}, {"hausdorff_rel", r.hausdorff_rel}, {"closed", r.closed},
+          lods.push_back({{"triangles", r.triangles}, {"hausdorff_rel", a.no_errors ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(r.hausdorff_rel)}, {"closed", r.closed},
                           {"manifold", r.manifold}, {"self_intersections", r.self_intersection_count}});
         o["lods"] = lods;
       }
@@ -194,7 +226,7 @@ int run(BuildArgs a) {
     j["failed"] = failed;
     j["wall_seconds"] = wall;
     j["workers"] = workers;
-    std::cout << j.dump() << "\n";
+    std::cout << json_text(j) << "\n";
   } else {
     std::printf("built %zu of %zu in %.2f s on %d worker%s\n", jobs.size() - failed, jobs.size(), wall, workers,
                 workers == 1 ? "" : "s");
@@ -212,7 +244,8 @@ void add_build_command(CLI::App& app, int* status) {
   cmd->add_option("--seed", a->seed, "Seed of the first variant (then seed+1, ...), >= 0")
       ->capture_default_str()
       ->check(whole_number());
-  cmd->add_option("--motion", a->motions, "BVH clips to retarget and add as animations");
+  cmd->add_option("--motion", a->motions, "A BVH clip to retarget and add as an animation named after the file (repeat for more)")
+      ->allow_extra_args(false);
   cmd->add_option("--lods", a->lods, "Levels of detail, 2..8")->capture_default_str();
   cmd->add_flag("--per-lod-files", a->per_lod, "Also write DIR/<name>_lod<k>.glb, one level each");
   cmd->add_flag("--no-errors", a->no_errors, "Skip measuring each level's distance to the skin (faster)");

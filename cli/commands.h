@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cerrno>
 #include <cstdlib>
 #include <functional>
 #include <string>
@@ -57,18 +58,46 @@ inline CLI::Validator finite_number(double lo = -HUGE_VAL, double hi = HUGE_VAL)
       "NUMBER");
 }
 
-// An unsigned option's check: digits only (CLI11 would wrap "-5" into 2^64 - 5).
+// An unsigned 64-bit option's check: digits only (CLI11 would wrap "-5" into 2^64 - 5) and no
+// more than 2^64 - 1 (CLI11 would clamp a larger one without a word).
 inline CLI::Validator whole_number() {
   return CLI::Validator(
       [](std::string& text) -> std::string {
-        if (!text.empty() && text.find_first_not_of("0123456789") == std::string::npos) return {};
+        if (!text.empty() && text.find_first_not_of("0123456789") == std::string::npos) {
+          errno = 0;
+          std::strtoull(text.c_str(), nullptr, 10);
+          if (errno != ERANGE) return {};
+          return "expected a whole number from 0 to 18446744073709551615 (got \"" + text + "\")";
+        }
         return "expected a whole number >= 0 (got \"" + text + "\")";
+      },
+      "N");
+}
+
+// An integer option's check: an optional sign and digits, within [lo, hi] (CLI::Range says "not in
+// range" of text that is no number, and NonNegativeNumber names a 300-digit bound).
+inline CLI::Validator whole_number(long long lo, long long hi) {
+  return CLI::Validator(
+      [lo, hi](std::string& text) -> std::string {
+        const std::string want = "expected a whole number from " + std::to_string(lo) + " to " + std::to_string(hi);
+        const std::size_t digits = text.find_first_not_of("+-") == 1 ? 1 : 0;
+        if (text.size() <= digits || text.find_first_not_of("0123456789", digits) != std::string::npos)
+          return want + " (got \"" + text + "\", not a whole number)";
+        errno = 0;
+        const long long x = std::strtoll(text.c_str(), nullptr, 10);
+        if (errno == ERANGE || x < lo || x > hi) return want + " (got \"" + text + "\")";
+        return {};
       },
       "N");
 }
 
 // "WxH" with both in [lo, hi] and nothing after them, into *w and *h.
 inline bool parse_size(const std::string& text, int lo, int hi, int* w, int* h) {
+  // Digits, one x, digits: sscanf alone would take " 320x240" and "+320x+240".
+  const std::size_t x = text.find('x');
+  if (x == 0 || x == std::string::npos || x + 1 == text.size() || text.find_first_not_of("0123456789x") != std::string::npos ||
+      text.find('x', x + 1) != std::string::npos)
+    return false;
   int end = 0;
   return std::sscanf(text.c_str(), "%dx%d%n", w, h, &end) == 2 && end == static_cast<int>(text.size()) && *w >= lo &&
          *h >= lo && *w <= hi && *h <= hi;

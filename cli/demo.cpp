@@ -234,7 +234,7 @@ int run_demo(const std::string& dir, int frames, bool full) {
   all["targets"] = demo_targets(posture, view, parts_sweep, parts, parts_depth, parts_quality, scaling);
   all["seconds"] = seconds;
   std::string json_path = (fs::path(dir) / "demo.json").string();
-  if (auto st = write_atomic(json_path, all.dump(2) + "\n"); !st) {
+  if (auto st = write_atomic(json_path, json_text(all, 2) + "\n"); !st) {
     std::cerr << "bodybuilder demo: " << st.error().message() << "\n";
     return 1;
   }
@@ -476,7 +476,7 @@ void add_demo_command(CLI::App& app, int* status) {
   auto full = std::make_shared<bool>(false);
   cmd->add_option("-o,--output", *dir, "Output folder")->capture_default_str();
   cmd->add_option("--frames", *frames, "Measured frames of the main run (sweeps use half)")->capture_default_str()
-      ->check(CLI::Range(4, 100000));
+      ->check(whole_number(4, 100000));
   cmd->add_flag("--full", *full, "Also the crowd sizes 2,000 and 5,000 (the demo runs 20 to 1,000 and 10,000)");
   cmd->callback([=] { *status = run_demo(*dir, *frames, *full); });
 }

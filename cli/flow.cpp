@@ -38,6 +38,7 @@ Result<std::vector<int>> parse_int_list(const std::string& list, int lo, int hi)
     if (ec != std::errc() || end != item.data() + item.size() || n < lo || n > hi) return Error{"", "", item};
     out.push_back(n);
   }
+  if (list.empty() || list.back() == ',') return Error{"", "", ""};  // getline drops a last empty item
   return out;
 }
 
@@ -226,6 +227,7 @@ int fail(const std::string& msg) {
 bool parse_threshold(const std::string& v, bool* on, float* value) {
   if (v == "off") { *on = false; return true; }
   char* end = nullptr;
+  if (v.empty() || !(std::isdigit(static_cast<unsigned char>(v[0])) || v[0] == '.')) return false;  // "", " 1", "+1"
   float f = std::strtof(v.c_str(), &end);
   if (!end || *end || !(f >= 0) || !std::isfinite(f)) return false;
   *on = true;
@@ -664,7 +666,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     q.y_label = "PSNR (dB)";
     q.series = {psnr, psnr_ref};
     auto qimg = render_chart(q, 1000, 600);
-    for (auto st : {write_text(base + ".csv", csv.str()), write_text(base + ".json", sweep.dump(2) + "\n"),
+    for (auto st : {write_text(base + ".csv", csv.str()), write_text(base + ".json", json_text(sweep, 2) + "\n"),
                     write_png(base + ".png", 1000, 600, img.data()),
                     write_png(base + "_quality.png", 1000, 600, qimg.data())})
       if (!st) return fail(st.error().message());
@@ -732,7 +734,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     c.series = {g, im};
     if (unweighted) c.series.push_back(iu);
     auto img = render_chart(c, 1000, 600);
-    for (auto st : {write_text(base + ".csv", csv.str()), write_text(base + ".json", scaling.dump(2) + "\n"),
+    for (auto st : {write_text(base + ".csv", csv.str()), write_text(base + ".json", json_text(scaling, 2) + "\n"),
                     write_png(base + ".png", 1000, 600, img.data())})
       if (!st) return fail(st.error().message());
     for (auto ext : {".csv", ".json", ".png"}) written.push_back(base + ext);
@@ -791,10 +793,10 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   report["files"] = written;
   const std::string json_path = (fs::path(a.out) / "flow.json").string();
   if (a.main_files)
-    if (auto st = write_text(json_path, report.dump(2) + "\n"); !st) return fail(st.error().message());
+    if (auto st = write_text(json_path, json_text(report, 2) + "\n"); !st) return fail(st.error().message());
   if (out_report) *out_report = report;
   if (a.json) {
-    std::cout << report.dump() << "\n";
+    std::cout << json_text(report) << "\n";
   } else if (!a.quiet) {
     std::printf("flow: %d humans, %d frames, %dx%d, %s\n", s.humans, s.frames, s.width, s.height, device.c_str());
     if (s.geometry) std::printf("  geometry   %8.2f ms/frame\n", result->geometry_ms);
@@ -828,9 +830,9 @@ void add_flow_command(CLI::App& app, int* status) {
                   "(default: the built-in body's LOD set and --variants seeded variants of it)");
   cmd->add_option("--variants", a->variants,
                   "Without --model: seeded variants of the built-in body beside it in the crowd (default 3)")
-      ->check(CLI::Range(0, 16));
-  cmd->add_option("--humans", a->humans, "Number of humans")->capture_default_str()->check(CLI::Range(1, 100000));
-  cmd->add_option("--frames", a->frames, "Measured frames")->capture_default_str()->check(CLI::Range(1, 100000));
+      ->check(whole_number(0, 16));
+  cmd->add_option("--humans", a->humans, "Number of humans")->capture_default_str()->check(whole_number(1, 100000));
+  cmd->add_option("--frames", a->frames, "Measured frames")->capture_default_str()->check(whole_number(1, 100000));
   cmd->add_option("--size", a->size, "Scene window WxH")->capture_default_str();
   cmd->add_option("--mode", a->mode, "geometry, impostor or both (same frames, interleaved)")->capture_default_str();
   cmd->add_option("--posture", a->posture, "Posture threshold (relative) or off")->capture_default_str();
@@ -867,7 +869,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "A model file with one level: up to N coarser levels made at load for both paths, each used where "
                   "its error (skinned, over its clips' poses) shows as under a pixel of a 1080-pixel-high view (0: none: the file's level only)")
       ->capture_default_str()
-      ->check(CLI::Range(0, 8));
+      ->check(whole_number(0, 8));
   cmd->add_option("--clip", a->clip,
                   "The clip every model plays, by name (default: the first named like \"walk\", else the first that "
                   "walks); its rate matches the walker's speed: from a name such as walk_1.20mps, else measured from "
@@ -940,7 +942,7 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--scaling-humans", a->scaling_list, "Crowd sizes of --scaling")->capture_default_str();
   cmd->add_option("--scaling-frames", a->scaling_frames,
                   "Measured frames per crowd size of --scaling (after 3 warm-up frames)")
-      ->check(CLI::Range(1, 100000))
+      ->check(whole_number(1, 100000))
       ->capture_default_str();
   cmd->add_option("-o,--output", a->out, "Output folder")->capture_default_str();
   cmd->add_flag("--json", a->json,

@@ -1,4 +1,6 @@
 // bodybuilder inspect BODY.json|FILE.glb [--json] [--preview PNG]
+#include <cctype>
+#include <filesystem>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -17,8 +19,12 @@ namespace bb::cli {
 
 namespace {
 
+// Whether `s` ends in `suf` (lower case), whatever the case of `s` ("FOX.GLB" is a glTF too).
 bool has_suffix(const std::string& s, const std::string& suf) {
-  return s.size() >= suf.size() && s.compare(s.size() - suf.size(), suf.size(), suf) == 0;
+  if (s.size() < suf.size()) return false;
+  for (std::size_t k = 0; k < suf.size(); ++k)
+    if (std::tolower(static_cast<unsigned char>(s[s.size() - suf.size() + k])) != suf[k]) return false;
+  return true;
 }
 
 // A CPU ray-cast picture of the skin: front and side views, shaded by the field's gradient.
@@ -112,7 +118,7 @@ int run_inspect_body(const std::string& path, bool as_json, const std::string& p
     j["limits_source"] = sk.limits_source;
     j["seconds"] = seconds;
     if (!preview_path.empty()) j["preview"] = preview_path;
-    std::cout << j.dump() << "\n";
+    std::cout << json_text(j) << "\n";
   } else {
     std::printf("body %s (%s)\n", body.name.c_str(), path.c_str());
     std::printf("  skeleton   %s: %zu joints, %d DOFs (%d with limits)\n", sk.name.c_str(), sk.joints().size(),
@@ -145,8 +151,21 @@ void add_inspect_command(CLI::App& app, int* status) {
                   "glTF with one level: also describe the N coarser levels the runtime makes at load "
                   "(flow and render make 3 by default; see their --lods)")
       ->capture_default_str()
-      ->check(CLI::Range(0, 8));
+      ->check(whole_number(0, 8));
   cmd->callback([=] {
+    std::error_code ec;
+    if (file->empty() || std::filesystem::is_directory(*file, ec)) {
+      std::cerr << "bodybuilder inspect: " << (file->empty() ? "(empty file name): no file given" : *file + ": is a folder, not a file")
+                << "\n";
+      *status = 1;
+      return;
+    }
+    if (!preview_path->empty())
+      if (auto st = check_output_file(*preview_path); !st) {
+        std::cerr << "bodybuilder inspect: --preview: " << st.error().message() << "\n";
+        *status = 1;
+        return;
+      }
     if (has_suffix(*file, ".glb") || has_suffix(*file, ".gltf"))
       *status = inspect_gltf(*file, *as_json, *lod_levels);
     else

@@ -18,6 +18,7 @@
 #include "bb/runtime/animation.h"
 #include "bb/runtime/model.h"
 #include "flow.h"
+#include "io.h"
 
 namespace bb::cli {
 
@@ -159,7 +160,7 @@ int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
   }
   j["body_parts"] = parts;
   if (as_json) {
-    std::cout << j.dump() << "\n";
+    std::cout << json_text(j) << "\n";
     return 0;
   }
   std::string kinds;

@@ -2,6 +2,8 @@
 // target and renamed into place, so nothing half-written is ever left behind.
 #pragma once
 
+#include <atomic>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -13,14 +15,57 @@
 
 namespace bb::cli {
 
+// A JSON document as text. File names and other strings that are not valid UTF-8 (a Linux file
+// name may hold any bytes) have their bad bytes written as U+FFFD instead of stopping the program.
+template <class Json>
+std::string json_text(const Json& j, int indent = -1) {
+  return j.dump(indent, ' ', false, Json::error_handler_t::replace);
+}
+
+// Whether `s` is valid UTF-8 (no overlong forms, surrogates or code points past U+10FFFF).
+inline bool valid_utf8(std::string_view s) {
+  std::size_t i = 0;
+  while (i < s.size()) {
+    const unsigned char c = static_cast<unsigned char>(s[i]);
+    int n = c < 0x80 ? 0 : (c >> 5) == 0x6 ? 1 : (c >> 4) == 0xE ? 2 : (c >> 3) == 0x1E ? 3 : -1;
+    if (n < 0) return false;
+    if (n == 0) { ++i; continue; }
+    if (i + n >= s.size()) return false;
+    std::uint32_t cp = c & (0x3F >> n);
+    for (int k = 1; k <= n; ++k) {
+      const unsigned char d = static_cast<unsigned char>(s[i + k]);
+      if ((d >> 6) != 0x2) return false;
+      cp = (cp << 6) | (d & 0x3F);
+    }
+    static constexpr std::uint32_t kLeast[4] = {0, 0x80, 0x800, 0x10000};
+    if (cp < kLeast[n] || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return false;
+    i += n + 1;
+  }
+  return true;
+}
+
+// Writes `bytes` to `path` through a temporary file beside it, renamed into place. The target
+// must be a regular file or not exist: a folder, a device or a pipe is refused (a rename would
+// replace it); a symbolic link is followed, so the file it names is what is replaced.
 inline Status write_atomic(const std::string& path, std::string_view bytes) {
   namespace fs = std::filesystem;
+  if (path.empty()) return Error{"(empty file name)", "", "cannot write: no file name given"};
   fs::path target(path);
   std::error_code ec;
+  if (fs::is_symlink(fs::symlink_status(target, ec))) {
+    fs::path to = fs::read_symlink(target, ec);
+    if (!ec) target = to.is_absolute() ? to : target.parent_path() / to;
+  }
+  const fs::file_status st = fs::status(target, ec);
+  if (fs::exists(st) && !fs::is_regular_file(st))
+    return Error{path, "", fs::is_directory(st) ? "cannot write: it is a folder" : "cannot write: it exists and is not a regular file"};
+  ec.clear();
   if (target.has_parent_path()) fs::create_directories(target.parent_path(), ec);
   if (ec) return Error{path, "", "cannot create directory: " + ec.message()};
+  // pid and a count: jobs of one process writing at once never share a temporary file.
+  static std::atomic<unsigned> serial{0};
   fs::path tmp = target;
-  tmp += ".tmp" + std::to_string(::getpid());
+  tmp += ".tmp" + std::to_string(::getpid()) + "." + std::to_string(serial++);
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) return Error{path, "", "cannot open for writing"};
@@ -34,8 +79,9 @@ inline Status write_atomic(const std::string& path, std::string_view bytes) {
   }
   fs::rename(tmp, target, ec);
   if (ec) {
+    const std::string why = ec.message();
     fs::remove(tmp, ec);
-    return Error{path, "", "cannot move the finished file into place: " + ec.message()};
+    return Error{path, "", "cannot move the finished file into place: " + why};
   }
   return Ok{};
 }
@@ -53,6 +99,20 @@ inline Status check_output_dir(const std::string& dir) {
   if (!fs::is_directory(p, ec))
     return Error{dir, "", "cannot be the output folder: " + p.string() + " is a file, not a folder"};
   if (::access(p.c_str(), W_OK | X_OK) != 0) return Error{dir, "", "cannot be the output folder: " + p.string() + " is not writable"};
+  return Ok{};
+}
+
+// Checks, before any work, that the file `path` can be written: a name is given, it is not a
+// folder or other non-regular file, and its folder can be written (check_output_dir).
+inline Status check_output_file(const std::string& path) {
+  namespace fs = std::filesystem;
+  if (path.empty()) return Error{"(empty file name)", "", "cannot write: no file name given"};
+  std::error_code ec;
+  const fs::file_status st = fs::status(path, ec);
+  if (fs::exists(st) && !fs::is_regular_file(st))
+    return Error{path, "", fs::is_directory(st) ? "cannot write: it is a folder" : "cannot write: it exists and is not a regular file"};
+  const fs::path parent = fs::path(path).parent_path();
+  if (auto s = check_output_dir(parent.empty() ? "." : parent.string()); !s) return Error{path, "", s.error().reason};
   return Ok{};
 }
 

@@ -172,6 +172,8 @@ int run_mesh(const std::string& body_path, const std::string& dir, bool as_json,
                         {"refining", 1e3 * st.refining}, {"skinning", 1e3 * st.skinning}, {"checks", 1e3 * st.checks},
                         {"errors", 1e3 * st.errors}};
   report["lods"] = nlohmann::json::array();
+  // Without the measurements (--no-errors) the distances are unknown: null, not 0.
+  auto measured = [&](double v) { return errors ? nlohmann::json(v) : nlohmann::json(nullptr); };
   for (const auto& l : *lods) {
     const auto& r = l.report;
     std::string file = (fs::path(dir) / ("lod" + std::to_string(r.level) + "." + format)).string();
@@ -179,21 +181,22 @@ int run_mesh(const std::string& body_path, const std::string& dir, bool as_json,
     if (!w) { std::cerr << "bodybuilder mesh: " << w.error().message() << '\n'; return 1; }
     report["lods"].push_back({{"level", r.level}, {"file", file}, {"triangles", r.triangles},
                               {"vertices", r.vertices}, {"extremity_triangles", r.extremity_triangles},
-                              {"vdb_extremities", r.vdb_extremities}, {"hausdorff_m", r.hausdorff_m},
-                              {"mean_m", r.mean_m}, {"hausdorff_rel", r.hausdorff_rel}, {"mean_rel", r.mean_rel},
+                              {"vdb_extremities", r.vdb_extremities}, {"hausdorff_m", measured(r.hausdorff_m)},
+                              {"mean_m", measured(r.mean_m)}, {"hausdorff_rel", measured(r.hausdorff_rel)},
+                              {"mean_rel", measured(r.mean_rel)},
                               {"closed", r.closed}, {"manifold", r.manifold}, {"oriented", r.oriented},
                               {"self_intersections", r.self_intersection_count}, {"ms", 1e3 * r.seconds},
-                              {"extremity_hausdorff_m", r.extremity_hausdorff_m},
+                              {"extremity_hausdorff_m", measured(r.extremity_hausdorff_m)},
                               {"screen_coverage", l.screen_coverage}});
   }
   std::string png = (fs::path(dir) / "lods.png").string();
   Status p = write_chain_png(png, *lods);
   if (!p) { std::cerr << "bodybuilder mesh: " << p.error().message() << '\n'; return 1; }
   report["picture"] = png;
-  Status j = write_atomic((fs::path(dir) / "report.json").string(), report.dump(1) + "\n");
+  Status j = write_atomic((fs::path(dir) / "report.json").string(), json_text(report, 1) + "\n");
   if (!j) { std::cerr << "bodybuilder mesh: " << j.error().message() << '\n'; return 1; }
   if (as_json) {
-    std::cout << report.dump() << '\n';
+    std::cout << json_text(report) << '\n';
   } else {
     std::printf("%s, %.3f m: %zu levels in %s\n", body.name.c_str(), body.height(), lods->size(), dir.c_str());
     std::printf("lod  triangles (extremities)  vertices  hausdorff (m, %%height)  mean (m, %%height)  extremities (m, %%height)  closed manifold self-x  ms\n");

@@ -56,6 +56,10 @@ int run_render(const RenderArgs& a) {
     std::cerr << "bodybuilder render: --size must be WxH between 8 and 8192, not \"" << a.size << "\"\n";
     return 2;
   }
+  if (auto st = check_output_file(a.output); !st) {
+    std::cerr << "bodybuilder render: " << st.error().message() << "\n";
+    return 1;
+  }
   o.time = a.time;
   o.azimuth_deg = a.azimuth;
   o.elevation_deg = a.elevation;
@@ -142,7 +146,7 @@ int run_render(const RenderArgs& a) {
       j["fps"] = a.fps;
       j["spin_deg_per_s"] = a.spin;
     }
-    std::cout << j.dump() << "\n";
+    std::cout << json_text(j) << "\n";
   } else {
     if (a.frames > 1)
       std::printf("wrote %s (%d frames at %g per second, %dx%d, %s; load %.1f ms, render %.1f ms a frame on %s)\n",
@@ -161,36 +165,40 @@ void add_render_command(CLI::App& app, int* status) {
   cmd->add_option("file", a->input, "Skinned .glb or .gltf")->required();
   cmd->add_option("-o,--output", a->output, "PNG to write")->required();
   cmd->add_option("--mode", a->mode, "geometry or impostor")->capture_default_str();
-  cmd->add_option("--time", a->time, "Seconds into the clip (looped)")->capture_default_str()->check(finite_number());
+  // The ranges keep the values what a float holds to a useful precision (a clip time of 1e5 s still
+  // steps by 8 ms; 1e40 was no float at all).
+  cmd->add_option("--time", a->time, "Seconds into the clip (looped), -100000 to 100000")
+      ->capture_default_str()
+      ->check(finite_number(-1e5, 1e5));
   cmd->add_option("--azimuth", a->azimuth, "Degrees around the character; 0 = in front (+Z)")
       ->capture_default_str()
-      ->check(finite_number());
+      ->check(finite_number(-36000.0, 36000.0));
   cmd->add_option("--elevation", a->elevation, "Degrees above the horizon")
       ->capture_default_str()
-      ->check(finite_number());
+      ->check(finite_number(-36000.0, 36000.0));
   cmd->add_option("--distance", a->distance, "Metres from the character's centre Ta; 0 = fit")
       ->capture_default_str()
-      ->check(finite_number(0.0));
+      ->check(finite_number(0.0, 1e6));
   cmd->add_option("--size", a->size, "Image size WxH in pixels")->capture_default_str();
   cmd->add_option("--clip", a->clip, "Clip name (default: the first)");
-  cmd->add_option("--lod", a->lod, "Draw this level of detail (default: chosen by screen size)")->check(CLI::NonNegativeNumber);
+  cmd->add_option("--lod", a->lod, "Draw this level of detail (default: chosen by screen size)")->check(whole_number(0, 1000));
   cmd->add_option("--lods", a->lods,
                   "A file with one level: up to N coarser levels made at load, each used where its error shows as "
                   "under a pixel of a 1080-pixel-high view (0: none)")
       ->capture_default_str()
-      ->check(CLI::Range(0, 8));
+      ->check(whole_number(0, 8));
   cmd->add_option("--snapshot", a->snapshot, "Impostor snapshot projection: perspective (from the eye) or ortho (the paper's)")
       ->capture_default_str();
   cmd->add_option("--frames", a->frames,
                   "N > 1: an animated PNG of N frames (browsers play it), the clip played on from --time")
       ->capture_default_str()
-      ->check(CLI::Range(1, 1000));
+      ->check(whole_number(1, 1000));
   cmd->add_option("--fps", a->fps, "With --frames: frames per second of clip time")
       ->capture_default_str()
       ->check(finite_number(1.0, 120.0));
   cmd->add_option("--spin", a->spin, "With --frames: the camera turns around the character, degrees per second")
       ->capture_default_str()
-      ->check(finite_number());
+      ->check(finite_number(-36000.0, 36000.0));
   cmd->add_flag("--json", a->json, "Print one JSON object with the figures (covered_pixels: the last frame's)");
   cmd->callback([=] { *status = run_render(*a); });
 }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 
 #include "bb/modeler/implicit_surface.h"
@@ -47,6 +48,66 @@ float Body::height() const {
   return top > bottom ? top - bottom : 0.0f;
 }
 
+namespace {
+
+// The name as an error message may show it: bytes that are not printable ASCII as \xNN.
+std::string shown(std::string_view name) {
+  std::string out;
+  for (unsigned char c : name.substr(0, 60)) {
+    if (c >= 0x20 && c < 0x7F && c != '\\' && c != '"') {
+      out += static_cast<char>(c);
+    } else {
+      char b[8];
+      std::snprintf(b, sizeof b, "\\x%02X", c);
+      out += b;
+    }
+  }
+  return name.size() > 60 ? out + "..." : out;
+}
+
+// Length in bytes of the valid UTF-8 sequence at s[i] (overlong forms, surrogates and code points past
+// U+10FFFF are invalid), 0 when there is none; `cp` gets its code point.
+size_t utf8_sequence(std::string_view s, size_t i, uint32_t& cp) {
+  const auto byte = [&](size_t k) { return static_cast<unsigned char>(s[k]); };
+  const unsigned char c = byte(i);
+  size_t n;
+  if (c < 0x80) { cp = c; return 1; }
+  if (c >= 0xC2 && c <= 0xDF) { n = 2; cp = c & 0x1F; }
+  else if (c >= 0xE0 && c <= 0xEF) { n = 3; cp = c & 0x0F; }
+  else if (c >= 0xF0 && c <= 0xF4) { n = 4; cp = c & 0x07; }
+  else return 0;
+  if (i + n > s.size()) return 0;
+  for (size_t k = 1; k < n; ++k) {
+    if ((byte(i + k) & 0xC0) != 0x80) return 0;
+    cp = (cp << 6) | (byte(i + k) & 0x3F);
+  }
+  if ((n == 3 && cp < 0x800) || (n == 4 && cp < 0x10000) || (cp >= 0xD800 && cp <= 0xDFFF) || cp > 0x10FFFF) return 0;
+  return n;
+}
+
+}  // namespace
+
+std::string body_name_problem(std::string_view name) {
+  const std::string rule =
+      "a body name becomes an output file's name, so it must be 1 to " + std::to_string(kMaxBodyNameBytes) +
+      " bytes of UTF-8 without '/', '\\' or control characters, and not \".\" or \"..\"";
+  if (name.empty()) return "body name is empty: " + rule;
+  if (name.size() > kMaxBodyNameBytes)
+    return "body name is " + std::to_string(name.size()) + " bytes long: " + rule;
+  if (name == "." || name == "..") return "body name \"" + std::string(name) + "\" names a directory: " + rule;
+  for (size_t i = 0; i < name.size();) {
+    uint32_t cp = 0;
+    const size_t n = utf8_sequence(name, i, cp);
+    if (n == 0) return "body name \"" + shown(name) + "\" is not valid UTF-8 (at byte " + std::to_string(i) + "): " + rule;
+    if (cp == '/' || cp == '\\')
+      return "body name \"" + shown(name) + "\" holds a '" + static_cast<char>(cp) + "': " + rule;
+    if (cp < 0x20 || (cp >= 0x7F && cp <= 0x9F))
+      return "body name \"" + shown(name) + "\" holds a control character (at byte " + std::to_string(i) + "): " + rule;
+    i += n;
+  }
+  return {};
+}
+
 Result<Body> parse_body(std::string_view text, std::string_view file, const std::string& base_dir) {
   Body body;
   try {
@@ -54,7 +115,7 @@ Result<Body> parse_body(std::string_view text, std::string_view file, const std:
     const std::string root = "$";
     if (!doc.is_object()) fail(root, "expected an object at the top level");
     body.name = string(member(doc, root, "name"), at(root, "name"));
-    if (body.name.empty()) fail(at(root, "name"), "body name is empty");
+    if (std::string problem = body_name_problem(body.name); !problem.empty()) fail(at(root, "name"), problem);
     if (auto it = doc.find("skeleton"); it != doc.end()) {
       std::string rel = string(*it, at(root, "skeleton"));
       std::filesystem::path p = std::filesystem::path(base_dir) / rel;

@@ -2,12 +2,16 @@
 // JsonError inside the modeler; the public entry points catch it and return bb::Error.
 #pragma once
 
+#include <algorithm>
 #include <cstdio>
+#include <iterator>
+#include <set>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include <glm/glm.hpp>
 #include <nlohmann/json.hpp>
@@ -72,24 +76,108 @@ inline const json& array(const json& j, const std::string& path) {
   return j;
 }
 
-// nlohmann's DOM builder, keeping the byte offset where parsing stopped: a number beyond double's range
-// ("1e400") is an out_of_range exception, which does not carry the offset its syntax errors do.
+// An iterator over the text that records how far the parser has read (for the line of an error
+// found in a SAX callback, where nlohmann gives no position).
+struct CountingIterator {
+  using iterator_category = std::input_iterator_tag;
+  using value_type = char;
+  using difference_type = std::ptrdiff_t;
+  using pointer = const char*;
+  using reference = const char&;
+  const char* p = nullptr;
+  const char** read_to = nullptr;
+  reference operator*() const { return *p; }
+  CountingIterator& operator++() {
+    *read_to = ++p;
+    return *this;
+  }
+  CountingIterator operator++(int) {
+    CountingIterator old = *this;
+    ++*this;
+    return old;
+  }
+  bool operator==(const CountingIterator& o) const { return p == o.p; }
+  bool operator!=(const CountingIterator& o) const { return p != o.p; }
+};
+
+// nlohmann's DOM builder, keeping the byte offset where parsing stopped (a number beyond double's range,
+// "1e400", is an out_of_range exception, which does not carry the offset its syntax errors do), and
+// refusing a key that appears twice in one object (nlohmann keeps the last silently): the error names
+// the object's JSON path, the key and its line.
 struct DomBuilder : nlohmann::detail::json_sax_dom_parser<json> {
+  using Base = nlohmann::detail::json_sax_dom_parser<json>;
   std::size_t stop = 0;
-  explicit DomBuilder(json& j) : json_sax_dom_parser<json>(j, true) {}
+  std::string_view text;
+  const char* read_to = nullptr;  // what the parser has read, through CountingIterator
+  struct Level {
+    bool array = false;
+    std::size_t count = 0;  // an array's elements so far
+    std::string key;        // an object's current key
+    std::set<std::string> keys;
+  };
+  std::vector<Level> levels;
+
+  DomBuilder(json& j, std::string_view t) : Base(j, true), text(t), read_to(t.data()) {}
+
+  std::string path() const {  // of the innermost object or array
+    std::string p = "$";
+    for (std::size_t i = 0; i + 1 < levels.size(); ++i)
+      p = levels[i].array ? at(p, levels[i].count - 1) : at(p, levels[i].key);
+    return p;
+  }
+  void element() {
+    if (!levels.empty() && levels.back().array) ++levels.back().count;
+  }
+
+  bool null() { return element(), Base::null(); }
+  bool boolean(bool v) { return element(), Base::boolean(v); }
+  bool number_integer(number_integer_t v) { return element(), Base::number_integer(v); }
+  bool number_unsigned(number_unsigned_t v) { return element(), Base::number_unsigned(v); }
+  bool number_float(number_float_t v, const string_t& s) { return element(), Base::number_float(v, s); }
+  bool string(string_t& v) { return element(), Base::string(v); }
+  bool start_object(std::size_t n) {
+    element();
+    levels.push_back({});
+    return Base::start_object(n);
+  }
+  bool key(string_t& k) {
+    Level& l = levels.back();
+    if (!l.keys.insert(k).second) {
+      const std::size_t read = static_cast<std::size_t>(read_to - text.data());
+      const auto line = 1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(read), '\n');
+      fail(path(), "duplicate key \"" + k + "\" (line " + std::to_string(line) + "): a key may appear once in an object");
+    }
+    l.key = k;
+    return Base::key(k);
+  }
+  bool end_object() {
+    levels.pop_back();
+    return Base::end_object();
+  }
+  bool start_array(std::size_t n) {
+    element();
+    levels.push_back({true});
+    return Base::start_array(n);
+  }
+  bool end_array() {
+    levels.pop_back();
+    return Base::end_array();
+  }
   template <class Exception>
   bool parse_error(std::size_t byte, const std::string& token, const Exception& ex) {
     stop = byte;
-    return json_sax_dom_parser<json>::parse_error(byte, token, ex);
+    return Base::parse_error(byte, token, ex);
   }
 };
 
-// Parses text, turning syntax errors (and numbers out of range) into "line L, column C" places.
+// Parses text, turning syntax errors (and numbers out of range) into "line L, column C" places and a
+// duplicate key into an error at its object's JSON path.
 inline json parse_text(std::string_view text) {
   json doc;
-  DomBuilder builder(doc);
+  DomBuilder builder(doc, text);
   try {
-    json::sax_parse(text.begin(), text.end(), &builder);
+    CountingIterator first{text.data(), &builder.read_to}, last{text.data() + text.size(), &builder.read_to};
+    json::sax_parse(first, last, &builder);
     return doc;
   } catch (const json::exception& e) {
     // Translate the byte offset into line and column.

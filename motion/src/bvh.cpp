@@ -31,6 +31,46 @@ struct Lexer {
   }
 };
 
+// The lines of the text from `pos` on; `line` is the number of the line starting at `pos` (after the
+// last line, the number the next one would have).
+struct Lines {
+  std::string_view text;
+  size_t pos = 0;
+  int line = 1;
+  bool next(std::string_view& out, int& number) {
+    if (pos >= text.size()) return false;
+    size_t e = text.find('\n', pos);
+    if (e == std::string_view::npos) e = text.size();
+    out = text.substr(pos, e - pos);
+    number = line++;
+    pos = e + 1;
+    return true;
+  }
+};
+
+bool is_space(char c) { return std::isspace(static_cast<unsigned char>(c)) != 0; }
+
+bool blank(std::string_view s) { return std::all_of(s.begin(), s.end(), is_space); }
+
+// The whitespace-separated words of one line.
+void split(std::string_view s, std::vector<std::string_view>& words) {
+  words.clear();
+  for (size_t i = 0; i < s.size();) {
+    if (is_space(s[i])) { ++i; continue; }
+    size_t b = i;
+    while (i < s.size() && !is_space(s[i])) ++i;
+    words.push_back(s.substr(b, i - b));
+  }
+}
+
+std::string_view first_word(std::string_view s) {
+  size_t b = 0;
+  while (b < s.size() && is_space(s[b])) ++b;
+  size_t e = b;
+  while (e < s.size() && !is_space(s[e])) ++e;
+  return s.substr(b, std::min<size_t>(e - b, 40));
+}
+
 struct ParseError {
   int line;
   std::string reason;
@@ -41,7 +81,8 @@ float to_float(std::string_view s, int line, const char* what) {
   std::string t(s);
   char* end = nullptr;
   v = std::strtof(t.c_str(), &end);
-  if (t.empty() || !end || *end != '\0' || !std::isfinite(v))
+  // (The whole word: a NUL byte inside it would end strtof's reading early.)
+  if (t.empty() || end != t.data() + t.size() || !std::isfinite(v))
     throw ParseError{line, std::string("expected a number for ") + what + ", got \"" + t + "\""};
   return v;
 }
@@ -68,6 +109,7 @@ int channel_of(std::string_view s) {
 Result<BvhFile> parse_bvh(std::string_view text, std::string_view file) {
   BvhFile out;
   Lexer lx{text};
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") lx.pos = 3;  // a UTF-8 byte order mark
   try {
     if (lx.next() != "HIERARCHY") throw ParseError{lx.line, "expected HIERARCHY at the start"};
     std::vector<int> stack;
@@ -134,28 +176,34 @@ Result<BvhFile> parse_bvh(std::string_view text, std::string_view file) {
     if (!(out.frame_time > 0)) throw ParseError{lx.line, "frame time must be positive"};
     if (!(out.frame_time >= 1e-6f && out.frame_time <= 1e6f))
       throw ParseError{lx.line, "frame time must be from 1e-6 to 1e6 seconds"};
+    // Frames are read line by line: a frame is one line holding exactly `channels` values (the CMU
+    // conversions write them so; a short or long row would otherwise shift every later frame's channels).
+    // Blank lines hold no frame and are skipped; a row beyond the declared count is an error.
     // Frames are added as they are read: the count is a claim, and a damaged one must not allocate.
+    Lines rows{text, lx.pos, lx.line};
+    std::string_view row;
+    int row_line = 0;
+    if (rows.next(row, row_line) && !blank(row))
+      throw ParseError{row_line, "unexpected \"" + std::string(first_word(row)) +
+                                     "\" after the frame time (frames start on the next line)"};
+    std::vector<std::string_view> words;
     for (int f = 0; f < frames; ++f) {
+      do {
+        if (!rows.next(row, row_line))
+          throw ParseError{rows.line, "file ends before frame " + std::to_string(f + 1) + " of " +
+                                          std::to_string(frames) + " (truncated?)"};
+      } while (blank(row));
+      split(row, words);
+      if (words.size() != static_cast<size_t>(channels))
+        throw ParseError{row_line, "frame " + std::to_string(f + 1) + " has " + std::to_string(words.size()) +
+                                       " values, expected " + std::to_string(channels) +
+                                       " (one per channel the hierarchy declares)"};
       out.frames.emplace_back(channels);
-      int line = 0;
-      for (int c = 0; c < channels; ++c) {
-        std::string_view v = lx.next();
-        if (c == 0) line = lx.line;
-        if (v.empty())
-          throw ParseError{lx.line, "file ends in frame " + std::to_string(f + 1) + " of " + std::to_string(frames) +
-                                        " (truncated?)"};
-        out.frames[f][c] = to_value(v, lx.line, "a channel value");
-      }
-      // A frame is one line: more or fewer values there is a wrong channel count.
-      size_t save = lx.pos;
-      int save_line = lx.line;
-      std::string_view extra = lx.next();
-      if (!extra.empty() && lx.line == line && f + 1 <= frames)
-        throw ParseError{line, "frame " + std::to_string(f + 1) + " has more than the " + std::to_string(channels) +
-                                   " values the hierarchy declares"};
-      lx.pos = save;
-      lx.line = save_line;
+      for (int c = 0; c < channels; ++c) out.frames[f][c] = to_value(words[c], row_line, "a channel value");
     }
+    while (rows.next(row, row_line))
+      if (!blank(row))
+        throw ParseError{row_line, "a frame beyond the " + std::to_string(frames) + " that \"Frames:\" declares"};
   } catch (const ParseError& e) {
     return Error{std::string(file), "line " + std::to_string(e.line), e.reason};
   }
@@ -528,10 +576,14 @@ Result<Clip> retarget(const BvhFile& bvh, const modeler::Skeleton& sk, const std
 }
 
 Result<Clip> load_bvh(const std::string& path, const modeler::Skeleton& target) {
+  // A directory opens and reads as an empty file on Linux: say what it is.
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) return Error{path, "", "is a directory, not a BVH file"};
   std::ifstream in(path, std::ios::binary);
   if (!in) return Error{path, "", "cannot open file (does it exist?)"};
   std::stringstream ss;
   ss << in.rdbuf();
+  if (in.bad()) return Error{path, "", "read error"};
   std::string text = ss.str();
   auto bvh = parse_bvh(text, path);
   if (!bvh) return bvh.error();

@@ -133,3 +133,58 @@ TEST(CliBuild, EveryProcessWritesTheSameBytes) {
     }
   }
 }
+
+// Two jobs never write one file: a second body of the same name fails, naming the first, instead
+// of leaving whichever finished last. Clips are named after their files, so two --motion files of
+// one name are refused before any work; so is a folder. A seed of 0 is a variant like any other
+// (it used to write the body itself, as default.glb).
+TEST(CliBuild, OutputsAndClipsAreNeverShared) {
+  fs::path d = fresh_dir("shared_names");
+  std::ifstream in(std::string(BB_DATA_DIR) + "/bodies/default.json");
+  nlohmann::json body = nlohmann::json::parse(in);
+  body["name"] = "twin";
+  std::ofstream(d / "twinA.json") << body.dump();
+  std::ofstream(d / "twinB.json") << body.dump();
+  Out o = run("build " + (d / "twinA.json").string() + " " + (d / "twinB.json").string() +
+              " --lods 2 --no-errors --jobs 2 --json -o " + (d / "out").string());
+  EXPECT_EQ(o.status, 1) << o.text;
+  const auto json_start = o.text.find("{\"outputs\"");
+  ASSERT_NE(json_start, std::string::npos) << o.text;
+  const auto j = nlohmann::json::parse(o.text.substr(json_start, o.text.find('\n', json_start) - json_start));
+  EXPECT_EQ(j["failed"], 1);
+  ASSERT_EQ(j["outputs"].size(), 2u);
+  EXPECT_TRUE(j["outputs"][0]["ok"].get<bool>());
+  EXPECT_TRUE(j["outputs"][0]["lods"][0]["hausdorff_rel"].is_null());  // --no-errors: not measured, not 0
+  const std::string why = j["outputs"][1]["error"].get<std::string>();
+  EXPECT_NE(why.find("twinB.json: would write " + (d / "out" / "twin.glb").string() + ", as " + (d / "twinA.json").string()),
+            std::string::npos)
+      << why;
+  EXPECT_TRUE(fs::exists(d / "out" / "twin.glb"));
+
+  fs::create_directories(d / "a");
+  fs::create_directories(d / "b");
+  const std::string clip = "HIERARCHY\nROOT Hips\n{\n  OFFSET 0 0 0\n  CHANNELS 3 Xrotation Yrotation Zrotation\n}\n";
+  std::ofstream(d / "a" / "walk.bvh") << clip;
+  std::ofstream(d / "b" / "walk.bvh") << clip;
+  Out twice = run("build --lods 2 --no-errors -o " + (d / "out2").string() + " --motion " + (d / "a" / "walk.bvh").string() +
+                  " --motion " + (d / "b" / "walk.bvh").string());
+  EXPECT_EQ(twice.status, 2) << twice.text;
+  EXPECT_NE(twice.text.find((d / "b" / "walk.bvh").string() + ": the clip is named after the file, and an earlier --motion has the same name"),
+            std::string::npos)
+      << twice.text;
+  Out folder = run("build --lods 2 --no-errors -o " + (d / "out2").string() + " --motion " + (d / "a").string());
+  EXPECT_EQ(folder.status, 2) << folder.text;
+  EXPECT_NE(folder.text.find((d / "a").string() + ": is a folder, not a BVH file"), std::string::npos) << folder.text;
+  // --motion takes one file: what follows it is a body again (it swallowed every later argument).
+  Out after = run("build --lods 2 --no-errors -o " + (d / "out2").string() + " --motion " + (d / "a" / "walk.bvh").string() +
+                  " /nonexistent_body.json");
+  EXPECT_NE(after.status, 0);
+  EXPECT_NE(after.text.find("/nonexistent_body.json: "), std::string::npos) << after.text;
+  EXPECT_EQ(after.text.find("--motion: /nonexistent_body.json"), std::string::npos) << after.text;  // not taken as a clip
+  EXPECT_FALSE(fs::exists(d / "out2"));
+
+  Out zero = run("build --variants 1 --seed 0 --variants-only --lods 2 --no-errors -o " + (d / "out3").string());
+  EXPECT_EQ(zero.status, 0) << zero.text;
+  EXPECT_TRUE(fs::exists(d / "out3" / "default_v0.glb")) << zero.text;
+  EXPECT_FALSE(fs::exists(d / "out3" / "default.glb"));
+}

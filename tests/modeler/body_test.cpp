@@ -1,3 +1,6 @@
+#include <string>
+#include <vector>
+
 #include <gtest/gtest.h>
 
 #include "bb/modeler/body.h"
@@ -123,4 +126,102 @@ TEST(Body, SkeletonNamingAFolderIsNamed) {
   EXPECT_EQ(r.error().file, "/tmp/");
   EXPECT_EQ(r.error().where, "(referenced from body.json $.skeleton)");
   EXPECT_EQ(r.error().reason, "is a directory, not a file");
+}
+
+namespace {
+
+// A one-primitive body named `name_json` (a JSON string literal, quotes included).
+std::string body_named(const std::string& name_json) {
+  return "{\"name\": " + name_json +
+         R"(, "primitives": [{"type": "metaball", "joint": "l_elbow", "center": [0,0,0], "radii": [0.1,0.1,0.1]}]})";
+}
+
+}  // namespace
+
+// Found in an audit: a key given twice in one object was accepted, the last one silently winning.
+TEST(Body, DuplicateKeysAreErrors) {
+  struct Case { std::string json, where, reason; };
+  const std::vector<Case> cases = {
+      {R"({"name": "a", "name": "b", "primitives": []})", "$", "duplicate key \"name\" (line 1)"},
+      {"{\"name\": \"x\", \"primitives\": [\n"
+       R"({"type": "metaball", "joint": "l_elbow", "center": [0,0,0], "radii": [1,1,1]},)"
+       "\n{\"type\": \"metaball\", \"joint\": \"l_elbow\", \"center\": [0,0,0],\n\"center\": [1,0,0], \"radii\": [1,1,1]}]}",
+       "$.primitives[1]", "duplicate key \"center\" (line 4)"},
+      // Scalars, arrays and objects before it count in an array's index; nested objects give their keys.
+      {R"({"name": "x", "extra": [1, "s", null, [2], {}, {"k": 1, "k": 2}]})", "$.extra[5]", "duplicate key \"k\""},
+      {R"({"name": "x", "a": {"b": {"c": 1, "d": [], "c": 2}}})", "$.a.b", "duplicate key \"c\""},
+      {R"({"a": {"k": 1}, "b": [{"k": 1}], "b": 2})", "$", "duplicate key \"b\""},
+  };
+  for (const auto& c : cases) {
+    auto r = parse_body(c.json, "dup.json");
+    ASSERT_FALSE(r) << c.json;
+    EXPECT_EQ(r.error().file, "dup.json");
+    EXPECT_EQ(r.error().where, c.where) << r.error().message();
+    EXPECT_NE(r.error().reason.find(c.reason), std::string::npos) << r.error().message();
+  }
+  // The same key in different objects is no duplicate.
+  auto ok = parse_body(R"({"name": "x", "meta": {"name": "y", "k": {"name": 1}}, "primitives": [
+      {"name": "p", "type": "metaball", "joint": "l_elbow", "center": [0,0,0], "radii": [1,1,1]},
+      {"name": "q", "type": "metaball", "joint": "l_elbow", "center": [0,0,0], "radii": [1,1,1]}]})",
+                       "ok.json");
+  ASSERT_TRUE(ok) << ok.error().message();
+  ASSERT_EQ(ok->primitives.size(), 2u);
+  EXPECT_EQ(ok->primitives[1].name, "q");
+}
+
+// Found in an audit: the CLI writes DIR/<name>.glb, and "../escape" or "/abs/path" wrote outside DIR.
+TEST(Body, NamesThatAreNotFileStemsAreRefused) {
+  struct Case { std::string json, reason; };
+  const std::vector<Case> cases = {
+      {R"("../escape")", "holds a '/'"},
+      {R"("/abs/path")", "holds a '/'"},
+      {R"("x/y")", "holds a '/'"},
+      {R"("")", "body name is empty"},
+      {R"(".")", "names a directory"},
+      {R"("..")", "names a directory"},
+      {R"("a\\b")", "holds a '\\'"},
+      {R"("a\u0000b")", "holds a control character (at byte 1)"},
+      {R"("a\tb")", "holds a control character (at byte 1)"},
+      {R"("ab\u007f")", "holds a control character (at byte 2)"},
+      {R"("\u0085")", "holds a control character (at byte 0)"},  // C1, NEL
+      {"\"" + std::string(201, 'n') + "\"", "body name is 201 bytes long"},
+  };
+  for (const auto& c : cases) {
+    auto r = parse_body(body_named(c.json), "name.json");
+    ASSERT_FALSE(r) << c.json << " was accepted";
+    EXPECT_EQ(r.error().where, "$.name") << r.error().message();
+    EXPECT_NE(r.error().reason.find(c.reason), std::string::npos) << r.error().message();
+    EXPECT_NE(r.error().reason.find("1 to 200 bytes of UTF-8 without '/', '\\' or control characters"), std::string::npos)
+        << r.error().message();
+  }
+  // Bytes that are not UTF-8 are invalid JSON before they are a name (nlohmann checks strings).
+  auto latin1 = parse_body(body_named("\"caf\xE9\""), "name.json");
+  ASSERT_FALSE(latin1);
+  EXPECT_EQ(latin1.error().where, "line 1, column 15");
+  EXPECT_NE(latin1.error().reason.find("invalid JSON"), std::string::npos) << latin1.error().message();
+  // Other names load as they are.
+  for (const std::string& name : std::vector<std::string>{"default", "a b", "v1.2", "...", "-x", std::string(200, 'n'), std::string("\xC3\x89milie")}) {
+    auto r = parse_body(body_named("\"" + name + "\""), "name.json");
+    ASSERT_TRUE(r) << r.error().message();
+    EXPECT_EQ(r->name, name);
+  }
+}
+
+TEST(Body, NameRuleChecksUtf8AndVariantNamesPassIt) {
+  EXPECT_EQ(body_name_problem("default"), "");
+  EXPECT_EQ(body_name_problem("\xE2\x82\xAC"), "");        // U+20AC
+  EXPECT_EQ(body_name_problem("\xF0\x9F\x98\x80"), "");    // U+1F600
+  for (const char* bad : {"caf\xE9", "\xC0\xAF", "\xE0\x80\xAF", "\xED\xA0\x80", "\xF4\x90\x80\x80", "\xE2\x82", "\x80"}) {
+    const std::string problem = body_name_problem(bad);
+    EXPECT_NE(problem.find("is not valid UTF-8"), std::string::npos) << bad << ": " << problem;
+  }
+  EXPECT_NE(body_name_problem("x\xC2\x85").find("control character (at byte 1)"), std::string::npos);
+  // make_variant's names, as the CLI gives them, stay valid.
+  const Body& b = default_body();
+  EXPECT_EQ(body_name_problem(b.name), "");
+  for (const char* suffix : {"_v1", "_v12", "_seed42"}) {
+    const Body v = make_variant(b, {.seed = 3}, suffix);
+    EXPECT_EQ(v.name, "default" + std::string(suffix));
+    EXPECT_EQ(body_name_problem(v.name), "") << v.name;
+  }
 }

@@ -164,7 +164,10 @@ INSTANTIATE_TEST_SUITE_P(
                     "$.joints[1].name", "duplicate"},
         BadSkeleton{R"({"joints": [{"name":"a","parent":null,"offset":[0,0,0]}],
                        "postures": {"p": {"a.x": 3}}})",
-                    "$.postures.p.a.x", "unknown DOF"}),
+                    "$.postures.p.a.x", "unknown DOF"},
+        // Found in an audit: the last of two equal keys won silently.
+        BadSkeleton{"{\"joints\": [{\"name\":\"a\",\"parent\":null,\n\"offset\":[0,0,0],\"offset\":[1,0,0]}]}",
+                    "$.joints[0]", "duplicate key \"offset\" (line 2)"}),
     [](const auto& param_info) { return "case" + std::to_string(param_info.index); });
 
 TEST(Skeleton, MissingFileNamesTheFile) {

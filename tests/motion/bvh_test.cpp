@@ -53,7 +53,7 @@ TEST(Bvh, MalformedFilesNameTheLineAndReason) {
       {std::string(t).replace(t.find("Zrotation Xrotation Yrotation"), 9, "Qrotation"), "line 9", "unknown channel"},
       {std::string(t).replace(t.find("CHANNELS 3"), 10, "CHANNELS 9"), "line 9", "0..6"},
       {t.substr(0, t.rfind("1 3 0 0 90")), "line 20", "truncated"},
-      {std::string(t).replace(t.find("0 3 0 0 0 0 0 0 0"), 17, "0 3 0 0 0 0 0 0 0 7"), "line 19", "more than the 9 values"},
+      {std::string(t).replace(t.find("0 3 0 0 0 0 0 0 0"), 17, "0 3 0 0 0 0 0 0 0 7"), "line 19", "frame 1 has 10 values, expected 9"},
       {std::string(t).replace(t.find("MOTION"), 6, "MOTON"), "line 16", "expected MOTION"},
       {std::string(t).replace(t.find("0 3 0 0 0 0 0 0 0"), 1, "x"), "line 19", "expected a number"},
   };
@@ -69,6 +69,95 @@ TEST(Bvh, MalformedFilesNameTheLineAndReason) {
   EXPECT_NE(missing.error().message().find("/nonexistent.bvh"), std::string::npos);
 }
 
+// Found in an audit: a UTF-8 byte order mark (some Windows editors write one) was "expected HIERARCHY at the start".
+TEST(Bvh, AcceptsAUtf8ByteOrderMark) {
+  auto r = motion::parse_bvh(std::string("\xEF\xBB\xBF") + kTiny, "bom.bvh");
+  ASSERT_TRUE(r) << r.error().message();
+  EXPECT_EQ(r->joints.size(), 3u);
+  EXPECT_EQ(r->channel_count, 9);
+  ASSERT_EQ(r->frames.size(), 2u);
+  EXPECT_EQ(r->frames[1], (std::vector<float>{1, 3, 0, 0, 90, 0, 0, 45, 0}));
+  // Only at the start: elsewhere its bytes are a word like any other.
+  std::string t = kTiny;
+  auto late = motion::parse_bvh(t.replace(t.find("ROOT"), 0, "\xEF\xBB\xBF"), "bom.bvh");
+  ASSERT_FALSE(late);
+  EXPECT_EQ(late.error().where, "line 2");
+}
+
+// Found in an audit: frame values were read as one stream, so a short row took its missing values from the next
+// row and shifted every later frame's channels (accepted outright where "Frames:" was lower than the row count, or
+// reported as the end of the file), and a frame wrapped over two lines was accepted. A frame is one line now.
+TEST(Bvh, EachFrameIsOneLineOfExactlyTheChannelCount) {
+  std::string t = kTiny;
+  auto with = [&](std::string text, const char* from, const char* to) {
+    return text.replace(text.find(from), std::strlen(from), to);
+  };
+  const std::string short_row = with(t, "0 3 0 0 0 0 0 0 0\r\n", "0 3 0 0 0 0 0 0\r\n");
+  std::vector<BadBvh> cases = {
+      {short_row, "line 19", "frame 1 has 8 values, expected 9"},
+      {with(short_row, "Frames: 2", "Frames: 1"), "line 19", "frame 1 has 8 values, expected 9"},
+      {with(t, "0 0 90 0 0 45 0\r\n", "0 0 90 0 0 45\r\n"), "line 20", "frame 2 has 8 values, expected 9"},
+      // Wrapped: 5 values, then 4 on the next line.
+      {with(t, "0 3 0 0 0 0 0 0 0\r\n", "0 3 0 0 0\r\n0 0 0 0\r\n"), "line 19", "frame 1 has 5 values, expected 9"},
+      // Two frames on one line.
+      {with(t, "0 3 0 0 0 0 0 0 0\r\n", "0 3 0 0 0 0 0 0 0 "), "line 19", "frame 1 has 18 values, expected 9"},
+      // The first frame on the "Frame Time:" line.
+      {with(t, "Frame Time: 0.5\r\n", "Frame Time: 0.5 "), "line 18", "unexpected \"0\" after the frame time"},
+  };
+  for (const auto& c : cases) {
+    auto r = motion::parse_bvh(c.text, "bad.bvh");
+    ASSERT_FALSE(r) << c.reason << " was accepted";
+    EXPECT_EQ(r.error().where, c.where) << r.error().message();
+    EXPECT_NE(r.error().reason.find(c.reason), std::string::npos) << r.error().message();
+  }
+  // Blank lines between and after the rows, tabs and trailing spaces are no frames, and no errors.
+  auto spaced = motion::parse_bvh(with(with(t, "0 0 0 0 0 0 0\r\n", "0 0 0 0 0 0 0 \t\r\n\r\n  \r\n"),
+                                       "0 45 0\r\n", "0\t45 0\n\n \t\n"),
+                                  "spaced.bvh");
+  ASSERT_TRUE(spaced) << spaced.error().message();
+  ASSERT_EQ(spaced->frames.size(), 2u);
+  EXPECT_EQ(spaced->frames[0], (std::vector<float>{0, 3, 0, 0, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(spaced->frames[1], (std::vector<float>{1, 3, 0, 0, 90, 0, 0, 45, 0}));
+  // The last row needs no line end.
+  auto unended = motion::parse_bvh(t.substr(0, t.size() - 2), "unended.bvh");
+  ASSERT_TRUE(unended) << unended.error().message();
+  EXPECT_EQ(unended->frames[1][7], 45.0f);
+}
+
+// Found in an audit: rows beyond the "Frames:" count were dropped without a word.
+TEST(Bvh, RowsBeyondTheFrameCountAreErrors) {
+  std::string t = kTiny;
+  auto one = motion::parse_bvh(std::string(t).replace(t.find("Frames: 2"), 9, "Frames: 1"), "extra.bvh");
+  ASSERT_FALSE(one);
+  EXPECT_EQ(one.error().where, "line 20");
+  EXPECT_EQ(one.error().reason, "a frame beyond the 1 that \"Frames:\" declares");
+  auto garbage = motion::parse_bvh(t + "\r\n\r\nend\r\n", "extra.bvh");
+  ASSERT_FALSE(garbage);
+  EXPECT_EQ(garbage.error().where, "line 23");
+  EXPECT_EQ(garbage.error().reason, "a frame beyond the 2 that \"Frames:\" declares");
+}
+
+// Found in an audit: strtof stopped at a NUL byte inside a word, and the rest of the word was ignored.
+TEST(Bvh, ANulByteInsideANumberIsAnError) {
+  std::string t = kTiny;
+  t.replace(t.find("90"), 2, std::string("9\0x", 3));
+  auto r = motion::parse_bvh(t, "nul.bvh");
+  ASSERT_FALSE(r);
+  EXPECT_EQ(r.error().where, "line 20");
+  EXPECT_NE(r.error().reason.find("expected a number for a channel value"), std::string::npos) << r.error().message();
+}
+
+// Found in an audit: a folder opens and reads as an empty file, "line 1: expected HIERARCHY at the start".
+TEST(Bvh, ADirectoryIsNamedAsSuch) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "bb_bvh_test_folder.bvh";
+  std::filesystem::create_directories(dir);
+  auto r = motion::load_bvh(dir.string(), modeler::default_skeleton());
+  std::filesystem::remove(dir);
+  ASSERT_FALSE(r);
+  EXPECT_EQ(r.error().file, dir.string());
+  EXPECT_EQ(r.error().reason, "is a directory, not a BVH file");
+}
+
 // Found by bvh_fuzz_test.cpp and in the code it pointed at: counts that overflowed an int (undefined
 // behaviour) or allocated what the file claimed (2e9 frames: 48 GB, then std::terminate), a frame count that
 // nothing bounded (no channels: a hang), and offsets, values and frame times that gave NaN postures and an
@@ -82,7 +171,7 @@ TEST(Bvh, DamagedCountsAndOutOfRangeNumbersAreErrors) {
       with(with(t, "CHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation Xrotation", "CHANNELS 0"),
            "CHANNELS 3 Zrotation Xrotation Yrotation", "CHANNELS 0");
   std::vector<BadBvh> cases = {
-      {with(t, "Frames: 2", "Frames: 2000000000"), "line 21", "file ends in frame 3 of 2000000000"},
+      {with(t, "Frames: 2", "Frames: 2000000000"), "line 21", "file ends before frame 3 of 2000000000"},
       {with(t, "Frames: 2", "Frames: 1e30"), "line 17", "frame count 1e30 is too large"},
       {with(t, "CHANNELS 3", "CHANNELS 1e30"), "line 9", "channel count must be 0..6, got 1e30"},
       {with(t, "CHANNELS 3", "CHANNELS 2.5"), "line 9", "channel count must be 0..6"},

@@ -64,6 +64,14 @@ Result<Body> load_body(const std::string& path);
 // The body built into the program (data/bodies/default.json at build time).
 const Body& default_body();
 
+// A body's name is the stem of the files built from it (DIR/<name>.glb): at most this many bytes.
+inline constexpr size_t kMaxBodyNameBytes = 200;
+
+// Empty when `name` may name a body: 1 to kMaxBodyNameBytes bytes of valid UTF-8 with no '/', '\\',
+// NUL or other control character (C0, DEL, C1), and not "." or "..". Otherwise what is wrong and
+// what a name may hold. parse_body refuses other names at $.name.
+std::string body_name_problem(std::string_view name);
+
 // A body of another height, build and, with a seed, randomly varied proportions. The result
 // is deterministic for a given (body, shape). Its name is "<name>" + suffix when suffix is given.
 Body make_variant(const Body& body, const BodyShape& shape, std::string_view name_suffix = {});

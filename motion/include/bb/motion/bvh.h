@@ -1,7 +1,9 @@
 // Motion capture: BVH import, retargeted onto the bodybuilder skeleton.
 //
-// Parsing accepts LF and CRLF files, tabs, any rotation order per joint and any subset of the six
-// channels; errors name the file, the line and the reason. Retargeting finds the BVH bones by role
+// Parsing accepts LF and CRLF files, a UTF-8 byte order mark, tabs, any rotation order per joint and
+// any subset of the six channels. Each frame is one line of exactly as many values as the hierarchy
+// declares channels, and there are exactly as many frames as "Frames:" says (blank lines aside);
+// errors name the file, the line and the reason. Retargeting finds the BVH bones by role
 // (hips, spine, neck, head, collar, upper arm, forearm, wrist, thigh, shin, foot, toe) under the
 // names the common conventions give them, compared without case, '_', '-', '.' and namespace
 // prefixes: CMU's two conversions (LeftUpLeg/LeftLeg/LeftFoot/LowerBack/Spine/LeftShoulder/LeftArm
