@@ -854,6 +854,9 @@ struct Renderer::Impl {
   std::vector<Due> due;
   std::vector<int> scratch_lod, scratch_part;  // per snapshot_scratch entry
   glm::vec3 light = glm::normalize(glm::vec3(0.4f, 0.8f, 0.6f));
+  // The planner's cache (FramePlan::cache_id) whose snapshots this renderer's windows hold: that of
+  // the last plan it took snapshots of (0: none yet).
+  std::uint64_t cache_id = 0;
 
   struct BillboardProgram {
     GLuint prog = 0;
@@ -1110,6 +1113,65 @@ struct Renderer::Impl {
   void take_snapshots(const FramePlan& plan, bool time_stages);
   void take_snapshot_passes(const FramePlan& plan);  // the draws; sets fits_due
 
+  // The game's GL state that would change what the snapshot passes draw into the atlas: saved and
+  // set for the passes by begin(), put back as found by end(). Its scissor rectangle and polygon
+  // offset are of its own framebuffer (a UI's rectangle, a decal's offset): a snapshot cut or
+  // shifted by them would be drawn from the atlas until its cache test fires. They still apply to
+  // the scene's passes (geometry and quads), which draw into the game's framebuffer.
+  struct AtlasPassState {
+    GLint fbo = 0, viewport[4] = {0, 0, 0, 0}, polygon_mode[2] = {GL_FILL, GL_FILL};
+    GLboolean scissor = GL_FALSE, offset_fill = GL_FALSE, discard = GL_FALSE;
+    GLboolean clip[4] = {GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE};
+    GLboolean mask[3][4] = {};  // colour write masks of the atlas's draw buffers 0-2
+    // Multisampled snapshots: drawn with every sample, nothing masked.
+    bool samples = false;
+    GLboolean multisample = GL_TRUE, alpha_to_coverage = GL_FALSE, sample_coverage = GL_FALSE, sample_mask = GL_FALSE;
+    void begin(bool multisampled) {
+      glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &fbo);
+      glGetIntegerv(GL_VIEWPORT, viewport);
+      glGetIntegerv(GL_POLYGON_MODE, polygon_mode);
+      scissor = glIsEnabled(GL_SCISSOR_TEST);
+      offset_fill = glIsEnabled(GL_POLYGON_OFFSET_FILL);
+      discard = glIsEnabled(GL_RASTERIZER_DISCARD);
+      for (int k = 0; k < 4; ++k) clip[k] = glIsEnabled(GL_CLIP_DISTANCE0 + k);
+      for (GLuint b = 0; b < 3; ++b) glGetBooleani_v(GL_COLOR_WRITEMASK, b, mask[b]);
+      if (scissor) glDisable(GL_SCISSOR_TEST);
+      if (offset_fill) glDisable(GL_POLYGON_OFFSET_FILL);
+      if (discard) glDisable(GL_RASTERIZER_DISCARD);
+      if (polygon_mode[0] != GL_FILL) glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
+      for (int k = 0; k < 4; ++k) glEnable(GL_CLIP_DISTANCE0 + k);  // the snapshot shaders' window edges
+      glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+      samples = multisampled;
+      if (samples) {
+        multisample = glIsEnabled(GL_MULTISAMPLE);
+        alpha_to_coverage = glIsEnabled(GL_SAMPLE_ALPHA_TO_COVERAGE);
+        sample_coverage = glIsEnabled(GL_SAMPLE_COVERAGE);
+        sample_mask = glIsEnabled(GL_SAMPLE_MASK);
+        if (!multisample) glEnable(GL_MULTISAMPLE);
+        if (alpha_to_coverage) glDisable(GL_SAMPLE_ALPHA_TO_COVERAGE);
+        if (sample_coverage) glDisable(GL_SAMPLE_COVERAGE);
+        if (sample_mask) glDisable(GL_SAMPLE_MASK);
+      }
+    }
+    void end() const {
+      for (int k = 0; k < 4; ++k)
+        if (!clip[k]) glDisable(GL_CLIP_DISTANCE0 + k);
+      for (GLuint b = 0; b < 3; ++b) glColorMaski(b, mask[b][0], mask[b][1], mask[b][2], mask[b][3]);
+      if (polygon_mode[0] != GL_FILL) glPolygonMode(GL_FRONT_AND_BACK, static_cast<GLenum>(polygon_mode[0]));
+      if (discard) glEnable(GL_RASTERIZER_DISCARD);
+      if (offset_fill) glEnable(GL_POLYGON_OFFSET_FILL);
+      if (scissor) glEnable(GL_SCISSOR_TEST);
+      if (samples) {
+        if (!multisample) glDisable(GL_MULTISAMPLE);
+        if (alpha_to_coverage) glEnable(GL_SAMPLE_ALPHA_TO_COVERAGE);
+        if (sample_coverage) glEnable(GL_SAMPLE_COVERAGE);
+        if (sample_mask) glEnable(GL_SAMPLE_MASK);
+      }
+      glBindFramebuffer(GL_DRAW_FRAMEBUFFER, static_cast<GLuint>(fbo));
+      glViewport(viewport[0], viewport[1], viewport[2], viewport[3]);
+    }
+  };
+
   // Instances [base_instance, base_instance + count) of level `lod`, its `surfaces`, in as many
   // draws as the flushes (flush_at) want.
   void draw_lod(const ShadeProgram& sp, int lod, GLsizei count, GLuint base_instance, Surfaces surfaces = Surfaces::kBoth) {
@@ -1188,12 +1250,10 @@ void Renderer::Impl::take_snapshot_passes(const FramePlan& plan) {
     scratch_part.push_back(u.part);
   }
   snapshots.upload(snapshot_scratch.data(), snapshot_scratch.size() * sizeof(SnapshotGpu));
-  GLint prev_fbo = 0, vp[4];
-  glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &prev_fbo);
-  glGetIntegerv(GL_VIEWPORT, vp);
+  AtlasPassState game;
+  game.begin(snapshot_samples > 1);
   glBindFramebuffer(GL_DRAW_FRAMEBUFFER, shared_atlas->atlas_fbo);
   glViewport(0, 0, config.page_size, config.page_size);
-  for (int k = 0; k < 4; ++k) glEnable(GL_CLIP_DISTANCE0 + k);
   if (snapshot_samples > 1) {
     // Page by page: drawn multisampled into the scratch page, then resolved into the atlas.
     for (std::size_t b = 0; b < due.size();) {
@@ -1226,17 +1286,20 @@ void Renderer::Impl::take_snapshot_passes(const FramePlan& plan) {
       b = e;
     }
   }
-  for (int k = 0; k < 4; ++k) glDisable(GL_CLIP_DISTANCE0 + k);
-  glBindFramebuffer(GL_DRAW_FRAMEBUFFER, static_cast<GLuint>(prev_fbo));
-  glViewport(vp[0], vp[1], vp[2], vp[3]);
+  game.end();
 }
 
 Renderer::Renderer() : impl_(std::make_unique<Impl>()) {}
 
 const Model& Renderer::model() const { return *impl_->model; }
 
+bool Renderer::holds_snapshots_for(const FramePlan& plan) const {
+  return plan.cache_plans_before == 0 || plan.cache_id == impl_->cache_id;
+}
+
 Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const ImpostorConfig& config,
                                                     const Renderer* share_atlas) {
+  if (Status valid = validate_impostor_config(config); !valid) return valid.error();
   std::unique_ptr<Renderer> r(new Renderer());
   Impl& d = *r->impl_;
   d.model = &model;
@@ -1600,6 +1663,12 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
   d.stamp(ts, 0);
   // 1. Snapshots due (section 4: shared pages, few passes), then their coverage rectangles.
   if (options.take_snapshots) {
+    // The plan's quads show snapshots of its planner's cache: this renderer must have taken them.
+    assert((plan.billboards.empty() || holds_snapshots_for(plan)) &&
+           "the plan draws snapshots another renderer took (a renderer made anew, or two renderers drawing one "
+           "planner's plans): call FramePlanner::invalidate() before the new renderer's first plan");
+    if (std::any_of(plan.snapshots.begin(), plan.snapshots.end(), [](const auto& s) { return !s.empty(); }))
+      d.cache_id = plan.cache_id;
     d.take_snapshots(plan, ts);
   } else {  // no snapshot stage: its stamps now, not a previous frame's
     d.stamp(ts, 1);

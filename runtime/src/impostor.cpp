@@ -9,7 +9,18 @@
 
 namespace bb::runtime {
 
-glm::mat4 SceneCamera::view() const { return glm::lookAt(eye, target, up); }
+glm::vec3 SceneCamera::view_up() const {
+  // glm::lookAt's right axis is cross(forward, up): none where they are parallel (a camera looking
+  // straight down with up +Y), and the view matrix would be NaN.
+  const glm::vec3 f = target - eye;
+  auto across = [&f](const glm::vec3& u) {
+    return glm::length(glm::cross(f, u)) > 1e-6f * glm::length(f) * glm::length(u);
+  };
+  if (across(up)) return up;
+  return across(glm::vec3(0.0f, 0.0f, 1.0f)) ? glm::vec3(0.0f, 0.0f, 1.0f) : glm::vec3(1.0f, 0.0f, 0.0f);
+}
+
+glm::mat4 SceneCamera::view() const { return glm::lookAt(eye, target, view_up()); }
 
 glm::mat4 SceneCamera::projection() const {
   return glm::perspective(fov_y, static_cast<float>(width) / static_cast<float>(std::max(1, height)), near_plane,
@@ -164,6 +175,7 @@ int choose_window(const WindowSizes& sizes, float pixels) {
 AtlasAllocator::AtlasAllocator(int page_size, int max_pages, const WindowSizes& sizes, int first_page)
     : page_size_(page_size), first_page_(std::max(0, first_page)), sizes_(sizes), pages_(static_cast<std::size_t>(std::max(1, max_pages))) {
   assert(sizes.count >= 1 && sizes.count <= 8 && sizes.size[0] <= page_size);
+  sizes_.count = std::clamp(sizes_.count, 1, static_cast<int>(sizes_.size.size()));
   for (auto& v : open_pages_) v.reserve(pages_.size());
 }
 
@@ -180,6 +192,10 @@ std::optional<AtlasWindow> AtlasAllocator::allocate(int size_class) {
         break;
       }
     if (p < 0) return std::nullopt;
+    // A page holds no window larger than itself (ImpostorConfig's contract, which
+    // validate_impostor_config checks): nothing to hand out rather than a page of no slots.
+    assert(sizes_.size[size_class] >= 1 && sizes_.size[size_class] <= page_size_);
+    if (sizes_.size[size_class] < 1 || sizes_.size[size_class] > page_size_) return std::nullopt;
     Page& pg = pages_[p];
     pg.size_class = size_class;
     pg.per_row = page_size_ / sizes_.size[size_class];

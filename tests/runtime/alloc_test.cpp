@@ -1,6 +1,7 @@
 // The per-frame path allocates nothing: after warm-up frames, FramePlanner::plan and Renderer::draw
 // make no heap allocation (global operator new is counted in this test binary).
 #include <atomic>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <new>
@@ -126,6 +127,43 @@ TEST(PerFrame, RendererAllocatesNothingAfterWarmUp) {
 TEST(PerFrame, PlannerAllocatesNothingAsCharactersComeAndGo) {
   expect_no_allocation(false, true);
   expect_no_allocation(true, true);
+}
+
+// A full atlas takes windows back from the characters out of view (FramePlanner::reclaim) without
+// allocating either: a camera turning round inside a ring of 200 walkers with room for a quarter of
+// them, whole impostors and part cards, once warm (a first turn).
+TEST(PerFrame, PlannerTakingWindowsBackAllocatesNothingAfterWarmUp) {
+  if (!BB_COUNT_ALLOCATIONS) GTEST_SKIP() << "allocation counting is off under AddressSanitizer";
+  std::string path = std::string(BB_SHARED_DATA_DIR) + "/gltf/CesiumMan.glb";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data absent: " << path;
+  auto m = load_model(path);
+  ASSERT_TRUE(m.ok());
+  Crowd crowd(*m);
+  for (int i = 0; i < 200; ++i) {
+    const float a = 6.2831853f * static_cast<float>(i) / 200.0f;
+    crowd.add(Character{glm::vec3(8.0f * std::sin(a), 0, -8.0f * std::cos(a)), a + 3.14159f, 1.0f, 0, 0.05f * i, 1.0f});
+  }
+  for (bool part_cards : {false, true}) {
+    ImpostorConfig cfg;
+    cfg.part_cards = part_cards;
+    cfg.max_pages = part_cards ? 24 : 4;
+    FramePlanner planner(*m, cfg);
+    auto turn = [&](int f) {
+      const float a = 0.1f * static_cast<float>(f);
+      SceneCamera cam;
+      cam.eye = {0, 1.0f, 0};
+      cam.target = {std::sin(a), 0.9f, -std::cos(a)};
+      return planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+    };
+    int reclaimed = 0;
+    for (int f = 0; f < 63; ++f) reclaimed += turn(f).atlas_reclaimed;  // a full turn
+    EXPECT_GT(reclaimed, 0) << "part cards " << part_cards;
+    const long before = g_allocations.load();
+    reclaimed = 0;
+    for (int f = 63; f < 126; ++f) reclaimed += turn(f).atlas_reclaimed;
+    EXPECT_EQ(g_allocations.load() - before, 0) << "part cards " << part_cards;
+    EXPECT_GT(reclaimed, 0) << "part cards " << part_cards;
+  }
 }
 
 }  // namespace

@@ -4,9 +4,11 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <random>
 #include <set>
+#include <string>
 #include <tuple>
 
 #include <glm/gtc/constants.hpp>
@@ -1169,6 +1171,262 @@ TEST(FramePlanner, AtlasFullFallsBackToGeometry) {
   EXPECT_GT(s.atlas_fallbacks, 0);
 }
 
+// A config that breaks a contract of the atlas or the planner is named with the setting and why
+// (Renderer::create returns the same error; a planner asserts it).
+TEST(ImpostorConfigCheck, BrokenContractsNameTheSetting) {
+  EXPECT_TRUE(validate_impostor_config(ImpostorConfig{}).ok());
+  auto where = [](const ImpostorConfig& c) {
+    const Status s = validate_impostor_config(c);
+    return s.ok() ? std::string("ok") : s.error().where + ": " + s.error().reason;
+  };
+  ImpostorConfig c;
+  c.page_size = 128;  // the 256-pixel window fits no page
+  EXPECT_EQ(where(c).rfind("ImpostorConfig::page_size: 128 is smaller than the largest window (256", 0), 0u) << where(c);
+  c.windows.count = 4;
+  c.windows.size = {128, 64, 32, 16};
+  EXPECT_EQ(where(c), "ok");  // windows that fit
+  c = ImpostorConfig{};
+  c.max_pages = 0;
+  EXPECT_EQ(where(c).rfind("ImpostorConfig::max_pages", 0), 0u) << where(c);
+  c = ImpostorConfig{};
+  c.windows.size[5] = 0;  // a window of no pixel
+  EXPECT_EQ(where(c).rfind("ImpostorConfig::windows: size[5] is 0", 0), 0u) << where(c);
+  c = ImpostorConfig{};
+  c.windows.count = 0;
+  EXPECT_EQ(where(c).rfind("ImpostorConfig::windows: count 0", 0), 0u) << where(c);
+  c.windows.count = 9;
+  EXPECT_EQ(where(c).rfind("ImpostorConfig::windows: count 9", 0), 0u) << where(c);
+  c = ImpostorConfig{};
+  c.windows.size[2] = 512;  // not largest first
+  EXPECT_EQ(where(c).rfind("ImpostorConfig::windows: size[2] (512) is larger than size[1]", 0), 0u) << where(c);
+  c = ImpostorConfig{};
+  c.first_page = -1;
+  EXPECT_EQ(where(c).rfind("ImpostorConfig::first_page", 0), 0u) << where(c);
+  c = shared_atlas_config(ImpostorConfig{}, 1, 2);
+  EXPECT_EQ(where(c), "ok");
+  c.atlas_pages = 40;  // pages 32 to 63 of 40
+  EXPECT_EQ(where(c).rfind("ImpostorConfig::atlas_pages", 0), 0u) << where(c);
+  c = ImpostorConfig{};
+  c.texels_per_pixel = 0.0f;
+  EXPECT_EQ(where(c).rfind("ImpostorConfig::texels_per_pixel", 0), 0u) << where(c);
+  c = ImpostorConfig{};
+  c.aligned_phase = 1.0f;
+  EXPECT_EQ(where(c).rfind("ImpostorConfig::aligned_phase", 0), 0u) << where(c);
+}
+
+// A page smaller than the largest window (a broken contract, asserted where assertions are on):
+// the allocator gives no window of that size, so a character that wants one is drawn as geometry
+// instead of the first frame reading past a page of no slots.
+TEST(Atlas, NoWindowLargerThanThePage) {
+#ifndef NDEBUG
+  GTEST_SKIP() << "the contract is asserted in this build";
+#else
+  WindowSizes w;
+  AtlasAllocator a(128, 2, w);
+  EXPECT_FALSE(a.allocate(0));  // 256 pixels: none
+  auto x = a.allocate(1);       // 128: one a page
+  ASSERT_TRUE(x);
+  EXPECT_EQ(x->size, 128);
+  w.size[5] = 0;  // a window of no pixel: none either
+  AtlasAllocator b(1024, 1, w);
+  EXPECT_FALSE(b.allocate(5));
+  EXPECT_TRUE(b.allocate(4));
+  Model m = tiny_model();
+  Crowd crowd = standing_row(m, 3, 2.0f);
+  ImpostorConfig cfg;
+  cfg.page_size = 128;
+  FramePlanner planner(m, cfg);
+  SceneCamera cam = facing_camera(12.0f);  // 256-pixel windows wanted
+  FrameStats st = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(st.geometry, 3);
+  EXPECT_EQ(st.atlas_fallbacks, 3);
+  cam = facing_camera(100.0f);  // 128 pixels and less: impostors
+  st = planner.plan(crowd, cam, 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(st.impostors, 3);
+#endif
+}
+
+// A camera looking along its up vector (straight down, up +Y): glm::lookAt's right axis would be
+// the cross product of two parallel vectors, the view NaN, nothing culled and nothing drawn. The
+// camera takes another up (+Z; +X along Z), as the impostor quads do.
+TEST(SceneCamera, UpAlongTheViewDirectionTakesAnother) {
+  SceneCamera cam;
+  cam.eye = {0, 10, 0};
+  cam.target = {0, 0, 0};
+  cam.up = {0, 1, 0};
+  const glm::mat4 v = cam.view();
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) ASSERT_TRUE(std::isfinite(v[c][r])) << c << ", " << r;
+  glm::vec3 right, up, fwd;
+  camera_axes(cam, right, up, fwd);
+  expect_vec3(fwd, {0, -1, 0}, 1e-6f);
+  expect_vec3(up, {0, 0, 1}, 1e-6f);
+  EXPECT_NEAR(glm::dot(right, up), 0.0f, 1e-6f);
+  cam.up = {0, 0, -1};  // a usable up stays
+  camera_axes(cam, right, up, fwd);
+  expect_vec3(up, {0, 0, -1}, 1e-6f);
+  cam.eye = {0, 0, 5};  // along Z with up Z: +X
+  cam.up = {0, 0, 2};
+  camera_axes(cam, right, up, fwd);
+  expect_vec3(up, {1, 0, 0}, 1e-6f);
+  // The planner culls with it: one character below, one far off to the side.
+  Model m = tiny_model();
+  Crowd crowd(m);
+  crowd.add(Character{});
+  crowd.add(Character{glm::vec3(100, 0, 0)});
+  SceneCamera down;
+  down.eye = {0, 20, 0};
+  down.target = {0, 0, 0};
+  FramePlanner planner(m);
+  const FramePlan& p = planner.plan(crowd, down, 0.0f, RenderMode::kImpostor);
+  EXPECT_EQ(p.stats.culled, 1);
+  ASSERT_EQ(p.stats.impostors, 1);
+  EXPECT_TRUE(std::isfinite(p.billboards[0].ta_half.x) && std::isfinite(p.billboards[0].ta_half.w));
+}
+
+// A character placed nowhere (a position, yaw or scale that is not finite) lies outside no frustum
+// plane by the comparisons (each is false with NaN): it is culled, and takes no window.
+TEST(FramePlanner, CharactersPlacedNowhereAreCulled) {
+  Model m = tiny_model();
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  Crowd crowd(m);
+  crowd.add(Character{});
+  crowd.add(Character{glm::vec3(nan, 0, 0)});
+  crowd.add(Character{glm::vec3(0, inf, 0)});
+  crowd.add(Character{glm::vec3(0), nan});
+  Character scaled;
+  scaled.scale = nan;
+  crowd.add(scaled);
+  FramePlanner planner(m);
+  for (RenderMode mode : {RenderMode::kImpostor, RenderMode::kGeometry}) {
+    const FramePlan& p = planner.plan(crowd, facing_camera(20.0f), 0.0f, mode);
+    EXPECT_EQ(p.stats.culled, 4);
+    EXPECT_EQ(p.stats.impostors + p.stats.geometry, 1);
+  }
+  EXPECT_EQ(planner.atlas().windows_used(), 1);
+}
+
+// Aligned snapshots are cut out of the screen's image along its axes, and the quad is drawn along
+// the axes of the moment: a camera turned in place (mouse look: no line of sight changes, so the
+// view test of section 5.2 does not fire) would stretch the old picture. The turn of the axes is
+// tested against the view threshold too.
+TEST(FramePlanner, AlignedSnapshotsRefreshWhenTheCameraTurnsInPlace) {
+  Model m = tiny_model();
+  Crowd crowd(m);
+  crowd.add(Character{});
+  ImpostorConfig cfg = view_test_only(8.0f);
+  cfg.aligned_snapshots = true;
+  cfg.texels_per_pixel = 1.0f;
+  FramePlanner planner(m, cfg);
+  FramePlanner free_grid(m, view_test_only(8.0f));  // snapshots facing the eye: exact whatever the turn
+  auto turned = [](float degrees) {
+    SceneCamera cam = facing_camera(30.0f);
+    const float a = glm::radians(degrees);
+    cam.target = cam.eye + 30.0f * glm::vec3(std::sin(a), 0.0f, -std::cos(a));
+    return cam;
+  };
+  const FramePlan& p0 = planner.plan(crowd, turned(0.0f), 0.0f, RenderMode::kImpostor);
+  ASSERT_EQ(p0.stats.snapshots, 1);
+  EXPECT_EQ(p0.billboards[0].axis_x.w, 1.0f);  // aligned: drawn parallel to the screen
+  EXPECT_EQ(free_grid.plan(crowd, turned(0.0f), 0.0f, RenderMode::kImpostor).stats.snapshots, 1);
+  // 5 degrees: within the threshold.
+  EXPECT_EQ(planner.plan(crowd, turned(5.0f), 0.0f, RenderMode::kImpostor).stats.snapshots, 0);
+  EXPECT_EQ(free_grid.plan(crowd, turned(5.0f), 0.0f, RenderMode::kImpostor).stats.snapshots, 0);
+  // 10 degrees from the snapshot's axes: past it.
+  const FrameStats s = planner.plan(crowd, turned(10.0f), 0.0f, RenderMode::kImpostor).stats;
+  EXPECT_EQ(s.culled, 0);
+  EXPECT_EQ(s.snapshots, 1);
+  EXPECT_EQ(s.view_refreshes, 1);
+  EXPECT_EQ(free_grid.plan(crowd, turned(10.0f), 0.0f, RenderMode::kImpostor).stats.snapshots, 0);
+  // And measured from the new snapshot: 15 degrees is 5 from it.
+  EXPECT_EQ(planner.plan(crowd, turned(15.0f), 0.0f, RenderMode::kImpostor).stats.snapshots, 0);
+  // A roll of the camera (its up turned about the line of sight) turns the axes too.
+  SceneCamera rolled = turned(15.0f);
+  rolled.up = glm::vec3(std::sin(glm::radians(12.0f)), std::cos(glm::radians(12.0f)), 0.0f);
+  EXPECT_EQ(planner.plan(crowd, rolled, 0.0f, RenderMode::kImpostor).stats.view_refreshes, 1);
+}
+
+// `n` characters standing on a circle of `radius` metres about the origin, facing it.
+Crowd standing_ring(const Model& m, int n, float radius) {
+  Crowd crowd(m);
+  for (int i = 0; i < n; ++i) {
+    const float a = 2.0f * glm::pi<float>() * static_cast<float>(i) / static_cast<float>(n);
+    crowd.add(Character{radius * glm::vec3(std::sin(a), 0.0f, -std::cos(a)), a + glm::pi<float>(), 1.0f, 0, 0.0f, 0.0f});
+  }
+  return crowd;
+}
+// A 320x256 camera at the ring's centre, 1.5 m up, looking out `degrees` right of -Z.
+SceneCamera looking_out(float degrees) {
+  SceneCamera cam;
+  cam.width = 320;
+  cam.height = 256;
+  const float a = glm::radians(degrees);
+  cam.eye = {0.0f, 1.5f, 0.0f};
+  cam.target = cam.eye + glm::vec3(std::sin(a), 0.0f, -std::cos(a));
+  return cam;
+}
+
+// Characters out of view keep their windows (their snapshots serve again when they come back),
+// but not at the expense of those in view: when the atlas is full, the windows of characters not
+// drawn as impostors in the frame are taken back, the longest undrawn first. A camera turning
+// round inside a ring of 40 characters, with room for 16 windows and about 10 in view: every
+// character in view is an impostor all the way round (else from a quarter turn on the atlas
+// held the windows of characters behind the camera, and those in view fell back to geometry).
+TEST(FramePlanner, CharactersOutOfViewGiveTheirWindowsToThoseInView) {
+  Model m = tiny_model();
+  Crowd crowd = standing_ring(m, 40, 6.0f);
+  ImpostorConfig cfg = view_test_only(8.0f);
+  cfg.max_pages = 1;  // 16 windows of 256 pixels
+  FramePlanner planner(m, cfg);
+  int reclaimed = 0, most_in_view = 0;
+  for (int f = 0; f <= 72; ++f) {
+    SCOPED_TRACE(testing::Message() << "turned " << 5 * f << " degrees");
+    const FrameStats st = planner.plan(crowd, looking_out(5.0f * static_cast<float>(f)), 0.0f, RenderMode::kImpostor).stats;
+    const int in_view = st.characters - st.culled;
+    most_in_view = std::max(most_in_view, in_view);
+    EXPECT_EQ(st.impostors_per_window[0], st.impostors);  // all of one class: a window each
+    EXPECT_EQ(st.atlas_fallbacks, 0);
+    EXPECT_EQ(st.impostors, in_view);
+    EXPECT_LE(st.atlas_windows_used, 16);
+    reclaimed += st.atlas_reclaimed;
+  }
+  EXPECT_LT(most_in_view, 14);
+  EXPECT_GT(reclaimed, 20);
+  // The longest undrawn went first: those seen in the last frames kept their snapshots, so turning
+  // back by a few steps takes none.
+  for (int f = 71; f >= 68; --f) {
+    SCOPED_TRACE(testing::Message() << "back at " << 5 * f << " degrees");
+    const FrameStats st = planner.plan(crowd, looking_out(5.0f * static_cast<float>(f)), 0.0f, RenderMode::kImpostor).stats;
+    EXPECT_EQ(st.snapshots, 0);
+    EXPECT_EQ(st.impostors, st.characters - st.culled);
+  }
+}
+
+// A character drawn as geometry (kAuto: too big on screen) keeps its window but draws none: when
+// the one page of the atlas is of its window's size and another size is wanted, the page goes back
+// whole.
+TEST(FramePlanner, CharactersDrawnAsGeometryGiveBackAWholePage) {
+  Model m = tiny_model();
+  ImpostorConfig cfg = view_test_only(8.0f);
+  cfg.max_pages = 1;
+  FramePlanner planner(m, cfg);
+  Crowd crowd(m);
+  crowd.add(Character{glm::vec3(0.0f, 0.0f, -10.0f)});
+  SceneCamera cam = looking_out(0.0f);
+  FrameStats st = planner.plan(crowd, cam, 0.0f, RenderMode::kAuto).stats;
+  ASSERT_EQ(st.impostors_per_window[0], 1);  // a 256-pixel window: its page takes no other size
+  crowd.add(Character{glm::vec3(0.0f, 0.0f, -110.0f)});  // far: a small window
+  cam.eye.z = -7.0f;  // the first 3 m away: geometry
+  cam.target.z = -8.0f;
+  st = planner.plan(crowd, cam, 0.0f, RenderMode::kAuto).stats;
+  EXPECT_EQ(st.geometry, 1);
+  EXPECT_EQ(st.impostors, 1);
+  EXPECT_EQ(st.impostors_per_window[0], 0);
+  EXPECT_EQ(st.atlas_fallbacks, 0);
+  EXPECT_EQ(st.atlas_reclaimed, 1);
+  EXPECT_EQ(planner.atlas().windows_used(), 1);
+}
+
 
 // A hinge: a root triangle and an arm triangle skinned to a joint 1 m up that turns 90 degrees
 // about +Z over the 1 s clip.
@@ -1445,6 +1703,34 @@ TEST(BodyParts, CardsFollowTheirCharactersWhenTheCrowdChanges) {
     EXPECT_EQ(w, before.at(key)) << "x " << key.first << ", part " << key.second;
   }
   EXPECT_EQ(planner.atlas().windows_used(), used - 2);
+}
+
+// Part cards out of view give their windows to those in view as whole impostors do (a character's
+// cards go back together): a camera turning round inside a ring of 40 hinges, with room for the
+// cards of 16.
+TEST(BodyParts, CharactersOutOfViewGiveTheirWindowsToThoseInView) {
+  Model m = hinge_model();
+  Crowd crowd = standing_ring(m, 40, 6.0f);
+  ImpostorConfig cfg = part_cards_view_only(20.0f);
+  cfg.windows.count = 1;  // every card in a 128-pixel window, 16 a page
+  cfg.windows.size[0] = 128;
+  cfg.page_size = 512;
+  cfg.max_pages = 2;
+  FramePlanner planner(m, cfg);
+  int reclaimed = 0, most_in_view = 0, most_windows = 0;
+  for (int f = 0; f <= 72; ++f) {
+    SCOPED_TRACE(testing::Message() << "turned " << 5 * f << " degrees");
+    const FrameStats st = planner.plan(crowd, looking_out(5.0f * static_cast<float>(f)), 0.0f, RenderMode::kImpostor).stats;
+    const int in_view = st.characters - st.culled;
+    most_in_view = std::max(most_in_view, in_view);
+    most_windows = std::max(most_windows, st.atlas_windows_used);
+    EXPECT_EQ(st.atlas_fallbacks, 0);
+    EXPECT_EQ(st.impostors, in_view);
+    EXPECT_EQ(st.part_cards, 2 * in_view);
+    reclaimed += st.atlas_reclaimed;
+  }
+  std::printf("hinges in view: %d at most; windows held: %d at most; taken back: %d\n", most_in_view, most_windows, reclaimed);
+  EXPECT_GT(reclaimed, 20);
 }
 
 TEST(BodyParts, ViewTestIgnoresTheCardsRollButNotItsTilt) {

@@ -15,6 +15,7 @@
 #include "bb/runtime/headless.h"
 #include "bb/runtime/portrait.h"
 #include "bb/runtime/renderer.h"
+#include "gl.h"  // runtime/src: the GL state a game leaves on
 #include "gl_context.h"
 
 namespace bb::runtime {
@@ -429,6 +430,180 @@ TEST(CrowdRender, AnAtlasTooBigForOneTextureIsRefusedWithItsSize) {
   cfg.atlas_pages = 64;  // and the next renderer is made as if nothing had happened
   cfg.max_pages = 32;
   EXPECT_TRUE(Renderer::create(*m, cfg).ok());
+}
+
+// A page smaller than the largest window holds none of it (each page is a grid of one size): the
+// renderer refuses the config, naming the setting, instead of the first impostor frame crashing.
+TEST(CrowdRender, APageSmallerThanTheLargestWindowIsRefused) {
+  REQUIRE_GL();
+  LOAD_CESIUM_MAN(m);
+  ImpostorConfig cfg;
+  cfg.page_size = 128;
+  auto r = Renderer::create(*m, cfg);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().where, "ImpostorConfig::page_size");
+  EXPECT_NE(r.error().reason.find("largest window (256"), std::string::npos) << r.error().reason;
+  cfg.max_pages = 0;
+  cfg.page_size = 1024;
+  r = Renderer::create(*m, cfg);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().where, "ImpostorConfig::max_pages");
+  cfg.max_pages = 2;
+  cfg.windows.size[5] = 0;
+  r = Renderer::create(*m, cfg);
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.error().where, "ImpostorConfig::windows");
+}
+
+// Three walkers 6 m away in a 320x240 frame (the GL state tests').
+Crowd three_walkers(const Model& m) {
+  Crowd crowd(m);
+  for (int i = 0; i < 3; ++i)
+    crowd.add(Character{glm::vec3(1.2f * static_cast<float>(i - 1), 0, 0), 0.5f * static_cast<float>(i), 1.0f, 0,
+                        0.3f * static_cast<float>(i), 1.0f});
+  return crowd;
+}
+SceneCamera three_walkers_camera() {
+  SceneCamera cam;
+  cam.eye = {0, 1.2f, 6};
+  cam.target = {0, 0.8f, 0};
+  cam.width = 320;
+  cam.height = 240;
+  return cam;
+}
+
+// A game may call draw() with its own state on: a scissor rectangle (its UI's), polygon offset (its
+// decals'). They are of its framebuffer: the scene's passes take them, but the snapshots drawn into
+// the atlas must not (a picture cut by the scissor, or offset, is drawn from the atlas until a cache
+// test fires), and the game finds its state as it left it.
+TEST(CrowdRender, SnapshotsIgnoreTheGamesScissorAndPolygonOffset) {
+  REQUIRE_GL();
+  LOAD_CESIUM_MAN(m);
+  const Crowd crowd = three_walkers(*m);
+  const SceneCamera cam = three_walkers_camera();
+  auto target = OffscreenTarget::create(320, 240);
+  ASSERT_TRUE(target.ok());
+  struct Case {
+    const char* name;
+    bool scissor, offset;
+    int samples;
+  };
+  for (const Case& c : {Case{"scissor", true, false, 1}, Case{"polygon offset", false, true, 1},
+                        Case{"both, multisampled snapshots", true, true, 4}}) {
+    SCOPED_TRACE(c.name);
+    ImpostorConfig cfg;
+    cfg.snapshot_samples = c.samples;
+    auto frame = [&](FramePlanner& planner, Renderer& renderer, bool game_state) {
+      (*target)->bind(true);
+      if (game_state && c.scissor) {
+        glEnable(GL_SCISSOR_TEST);
+        glScissor(0, 0, 160, 240);  // the left half of the screen
+      }
+      if (game_state && c.offset) {
+        glEnable(GL_POLYGON_OFFSET_FILL);
+        glPolygonOffset(4.0f, 4.0f);
+      }
+      const FramePlan& plan = planner.plan(crowd, cam, 1.0f, RenderMode::kImpostor);
+      while (glGetError() != GL_NO_ERROR) {
+      }
+      renderer.draw(plan);
+      EXPECT_EQ(glGetError(), static_cast<GLenum>(GL_NO_ERROR));
+      if (game_state) {  // as the game left it
+        EXPECT_EQ(glIsEnabled(GL_SCISSOR_TEST), c.scissor ? GL_TRUE : GL_FALSE);
+        EXPECT_EQ(glIsEnabled(GL_POLYGON_OFFSET_FILL), c.offset ? GL_TRUE : GL_FALSE);
+        GLint box[4];
+        glGetIntegerv(GL_SCISSOR_BOX, box);
+        if (c.scissor) {
+          EXPECT_EQ(box[2], 160);
+        }
+        GLfloat units = 0;
+        glGetFloatv(GL_POLYGON_OFFSET_UNITS, &units);
+        if (c.offset) {
+          EXPECT_EQ(units, 4.0f);
+        }
+        glDisable(GL_SCISSOR_TEST);
+        glDisable(GL_POLYGON_OFFSET_FILL);
+        glPolygonOffset(0.0f, 0.0f);
+      }
+      return Image{320, 240, (*target)->read_rgba(), plan.stats, 0};
+    };
+    FramePlanner ref_planner(*m, cfg), planner(*m, cfg);
+    auto ref_renderer = Renderer::create(*m, cfg);
+    auto renderer = Renderer::create(*m, cfg);
+    ASSERT_TRUE(ref_renderer.ok() && renderer.ok());
+    const Image ref = frame(ref_planner, **ref_renderer, false);
+    ASSERT_EQ(ref.stats.snapshots, 3);
+    const Image with_state = frame(planner, **renderer, true);
+    ASSERT_EQ(with_state.stats.snapshots, 3);
+    if (c.scissor) {  // the scene's pass took the game's scissor: nothing right of it
+      long right = 0;
+      for (int y = 0; y < 240; ++y)
+        for (int x = 160; x < 320; ++x) right += with_state.rgba[(static_cast<std::size_t>(y) * 320 + x) * 4 + 3] != 0;
+      EXPECT_EQ(right, 0);
+    }
+    // The next frame draws the snapshots taken under the game's state: the same as the reference's.
+    const Image cached = frame(planner, **renderer, false);
+    EXPECT_EQ(cached.stats.snapshots, 0);
+    int covered = 0;
+    const double psnr = covered_psnr(ref, cached, &covered);
+    EXPECT_GT(covered, 2000);
+    EXPECT_GT(psnr, 60.0) << "the cached snapshots differ from those taken without the game's state";
+  }
+}
+
+// A planner's snapshots are pictures in the atlas of the renderer that drew its plans. A renderer
+// made anew (after a context loss, a change of settings) holds none of them: the planner's next
+// plans would draw empty windows (invisible characters) until their cache tests fire. The plan
+// names its cache, and the renderer tells whether it holds its snapshots; FramePlanner::invalidate
+// starts a new cache that any renderer can draw.
+TEST(CrowdRender, ANewRendererNeedsThePlannerInvalidated) {
+  REQUIRE_GL();
+  LOAD_CESIUM_MAN(m);
+  const Crowd crowd = three_walkers(*m);
+  const SceneCamera cam = three_walkers_camera();
+  auto target = OffscreenTarget::create(320, 240);
+  ASSERT_TRUE(target.ok());
+  FramePlanner planner(*m);
+  auto first = Renderer::create(*m);
+  ASSERT_TRUE(first.ok());
+  auto draw = [&](Renderer& r, const FramePlan& plan) {
+    (*target)->bind(true);
+    r.draw(plan);
+    return Image{320, 240, (*target)->read_rgba(), plan.stats, 0};
+  };
+  const FramePlan& p0 = planner.plan(crowd, cam, 1.0f, RenderMode::kImpostor);
+  EXPECT_EQ(p0.cache_plans_before, 0u);
+  const std::uint64_t cache = p0.cache_id;
+  const Image a = draw(**first, p0);
+  const FramePlan& p1 = planner.plan(crowd, cam, 1.0f, RenderMode::kImpostor);
+  EXPECT_EQ(p1.stats.snapshots, 0);
+  EXPECT_EQ(p1.cache_id, cache);
+  EXPECT_EQ(p1.cache_plans_before, 1u);
+  EXPECT_TRUE((*first)->holds_snapshots_for(p1));
+  auto second = Renderer::create(*m);
+  ASSERT_TRUE(second.ok());
+  EXPECT_FALSE((*second)->holds_snapshots_for(p1));  // drawing it would show three empty windows
+  planner.invalidate();
+  const FramePlan& p2 = planner.plan(crowd, cam, 1.0f, RenderMode::kImpostor);
+  EXPECT_NE(p2.cache_id, cache);
+  EXPECT_EQ(p2.cache_plans_before, 0u);
+  EXPECT_EQ(p2.stats.snapshots, 3);
+  EXPECT_TRUE((*second)->holds_snapshots_for(p2));
+  const Image b = draw(**second, p2);
+  const FramePlan& p3 = planner.plan(crowd, cam, 1.0f, RenderMode::kImpostor);
+  EXPECT_TRUE((*second)->holds_snapshots_for(p3));
+  EXPECT_FALSE((*first)->holds_snapshots_for(p3));  // the first renderer holds the old cache's
+  const Image c = draw(**second, p3);
+  int covered = 0;
+  EXPECT_GT(covered_psnr(a, b, &covered), 60.0);
+  EXPECT_GT(covered, 2000);
+  EXPECT_GT(covered_psnr(a, c, &covered), 60.0);
+  // Another planner's plans: a first plan needs nothing of the renderer; its next ones do.
+  FramePlanner other(*m);
+  const FramePlan& q0 = other.plan(crowd, cam, 1.0f, RenderMode::kImpostor);
+  EXPECT_NE(q0.cache_id, p3.cache_id);
+  EXPECT_TRUE((*second)->holds_snapshots_for(q0));
+  EXPECT_FALSE((*second)->holds_snapshots_for(other.plan(crowd, cam, 1.0f, RenderMode::kImpostor)));
 }
 
 // Twenty walkers on a circle seen from above the ring: the crowd path (planner + renderer) with

@@ -348,6 +348,15 @@ struct ImpostorConfig {
   bool short_lived_as_geometry = false;
 };
 inline constexpr float kLimbElongation = 2.0f, kLimbFlatness = 1.7f;
+
+// Whether `config` keeps the contracts the atlas and the planner rely on: windows.count in [1, 8],
+// window sizes of at least a pixel, largest first; a page_size that holds the largest window (each
+// page is a grid of windows of one size); max_pages >= 1; first_page >= 0 and the model's pages
+// inside atlas_pages (when not 0); texels_per_pixel finite and > 0; aligned_phase in [0, 1).
+// The error names the setting (Error::where, e.g. "ImpostorConfig::page_size") and why.
+// Renderer::create returns it; a FramePlanner asserts it (a planner made with a broken config
+// anyway draws geometry where it has no window to give).
+Status validate_impostor_config(const ImpostorConfig& config);
 // The config of the k-th of n models whose renderers share one atlas (ImpostorConfig::first_page):
 // `base` with pages [k * max_pages, (k + 1) * max_pages) of n * max_pages.
 inline ImpostorConfig shared_atlas_config(ImpostorConfig base, int k, int n) {
@@ -407,6 +416,9 @@ struct FrameStats {
   int part_snapshots = 0;    // part cards refreshed (refresh_fraction is then part_snapshots / part_cards)
   float refresh_fraction = 0;  // snapshots / impostors (0 when no impostor)
   int atlas_fallbacks = 0;   // wanted an impostor, atlas full: drawn as geometry
+  // Characters whose windows were taken back for others this frame: characters not drawn as
+  // impostors in it (culled, or geometry), the longest undrawn first, when the atlas was full.
+  int atlas_reclaimed = 0;
   int posture_refreshes = 0, view_refreshes = 0, window_refreshes = 0, new_snapshots = 0;
   int deferred_refreshes = 0;  // stale impostors kept one more frame by CacheConfig::refresh_budget
   int ahead_refreshes = 0;     // impostors refreshed before their thresholds (CacheConfig::ahead_fraction)
@@ -433,6 +445,13 @@ struct FramePlan {
   std::vector<std::vector<SnapshotGpu>> snapshots;  // [lod] -> snapshots drawn with that level
   SceneCamera camera;
   FrameStats stats;
+  // The impostor cache the plan's quads draw from: a FramePlanner makes a new one when it is made
+  // and at each invalidate(). The quads show windows whose snapshots were taken in this plan or in
+  // the `cache_plans_before` earlier plans of the same cache that took snapshots, so those must
+  // have been drawn by the renderer that draws this plan (Renderer::holds_snapshots_for; 0: the
+  // plan needs no earlier snapshot, any renderer of the model and config can draw it).
+  std::uint64_t cache_id = 0;
+  std::uint32_t cache_plans_before = 0;
 };
 
 class WorkerPool;
@@ -476,8 +495,24 @@ class FramePlanner {
   // What the last plan() or plan_many() returned or made; valid until the next.
   const FramePlan& plan_of_last_frame() const { return plan_; }
 
-  // Forces a new snapshot of every impostor at the next impostor frame.
+  // Forces a new snapshot of every impostor at the next impostor frame, and starts a new cache
+  // (FramePlan::cache_id). The snapshots a planner keeps (its cache) are pictures in the atlas of
+  // the renderer that drew its plans: a plan draws windows whose snapshots earlier plans took. A
+  // renderer made anew (after a context loss, a change of settings), or another renderer than the
+  // one that drew the earlier plans, holds none of them, and the characters would be drawn from
+  // empty windows (invisible) until their cache tests fire: call invalidate() before its first
+  // plan (Renderer::draw asserts it; Renderer::holds_snapshots_for tells). One renderer's atlas
+  // holds one planner's snapshots: two views of one crowd need a planner (and renderer) each.
   void invalidate();
+  // The config, to change between frames. The cache tests, the refresh policies, the kAuto switch,
+  // part cards on or off, texels per pixel (a character whose window size class changes is taken
+  // anew) and planner_threads take effect at the next frame. The fields that only change how a
+  // snapshot is taken (aligned_snapshots, aligned_phase, perspective_snapshots, snapshot_distance,
+  // texel_per_pixel, tight_quads, snapshot_lod_from_screen, fit_quads_*, view_lead, lead_cards)
+  // apply to the snapshots taken after the change: impostors keep their old pictures until their
+  // cache tests fire, unless invalidate() is called. The atlas's fields (windows, page_size,
+  // max_pages, first_page, atlas_pages) and those the Renderer was made with (snapshot_samples,
+  // impostor_taps, relight, parallax_cards, ...) must not change: make a new planner and renderer.
   ImpostorConfig& config() { return config_; }
   const ImpostorConfig& config() const { return config_; }
   const Model& model() const { return *model_; }
@@ -504,6 +539,16 @@ class FramePlanner {
     // without a snapshot, so the window holds an older picture (refreshed before it is drawn).
     bool picture_behind = false;
     std::uint32_t taken = 0;  // impostor frame (FrameSetup::frame) the last snapshot was taken in
+    // The last impostor frame the character was drawn in as an impostor (its window, or its part
+    // cards' windows, in use): a window held by a character not drawn in the frame being planned
+    // may be taken back when the atlas is full (reclaim), the longest undrawn first.
+    std::uint32_t drawn = 0;
+    // Aligned snapshots: the line of sight to Ta in the camera's frame (right, up, forward) when
+    // the snapshot was cut. Its quad is drawn along the current screen axes, which gives the picture
+    // back while this direction holds (a still camera, one orbiting the crowd); a camera turned in
+    // place (mouse look) turns it and no line of sight in the character's frame: refreshed when it
+    // has turned past the view threshold.
+    glm::vec3 sight_on_screen{0.0f, 0.0f, 1.0f};
     glm::vec4 rect{-1, -1, 1, 1};  // part of the window the last snapshot used
     AtlasWindow window;
     bool valid = false;
@@ -602,6 +647,11 @@ class FramePlanner {
     // `part_jobs`).
     std::vector<PendingPart>* pending_parts = nullptr;
     std::vector<PartJob>* part_jobs = nullptr;
+    // Characters whose window could not be allocated, the atlas being full: listed here (not null:
+    // end_frame's serial pass) to be planned again once every other character of the frame is
+    // (`reclaim` set: then windows of characters not drawn this frame may be taken back for them).
+    std::vector<std::uint32_t>* starved = nullptr;
+    bool reclaim = false;
   };
   // A chunk's lists and counters, written by one thread: on cache lines of their own (a counter
   // beside the next chunk's list heads would be written by two threads at once).
@@ -641,6 +691,16 @@ class FramePlanner {
   void plan_chunk(std::size_t c);
   const FramePlan& end_frame();
   void refresh_listed(const std::vector<PendingRefresh>& list, std::size_t take, bool ahead);
+  // A window of class `size_class` for a starved character (end_frame): allocated, or, the atlas
+  // being full, taken back from the characters not drawn as impostors this frame (reclaim).
+  std::optional<AtlasWindow> allocate_or_reclaim(int size_class, bool reclaim);
+  // Takes back the windows of one character not drawn this frame so that a window of `size_class`
+  // can be allocated: the longest undrawn holding one of that class, else every character holding
+  // a window of one page that only such characters use (the page is then free for any class).
+  // False when there is none. Linear in the crowd once a frame (on its first call), amortized O(1)
+  // a window after.
+  bool reclaim(int size_class);
+  void release_character_windows(std::size_t i);  // reclaim's: character i's windows back to the atlas
   // The frame being planned.
   struct Frame {
     const Crowd* crowd = nullptr;
@@ -664,6 +724,20 @@ class FramePlanner {
   int budget_left_ = 0;  // CacheConfig::refresh_budget left in the frame being planned
   int last_snapshots_ = 0;  // impostors refreshed by the last frame planned (Frame::work)
   AtlasAllocator atlas_;
+  std::uint64_t cache_id_ = 0;         // FramePlan::cache_id (new at each invalidate())
+  std::uint32_t cache_plans_ = 0;      // plans of that cache that took snapshots
+  std::vector<std::uint32_t> starved_;  // Out::starved of the frame being planned
+  // reclaim's candidates, found at its first call in a frame: the characters holding windows that
+  // were not drawn in it, the longest undrawn first (by the bit length of the frames since, so no
+  // sort), with how many windows they hold in each page and, per window class, how far its
+  // search has gone.
+  struct Reclaim {
+    std::uint32_t frame = 0;  // FrameSetup::frame they were found in (0: none yet)
+    std::vector<std::uint32_t> found, order;
+    std::vector<int> page_windows;
+    std::array<std::size_t, 8> next{};
+  };
+  Reclaim reclaim_;
   std::vector<CacheState> cache_;
   std::vector<PartCache> part_cache_;  // [character * parts + part] when part cards are on
   // follow_ids' scratch: the slots in their new order, each character's old slot, which old slots

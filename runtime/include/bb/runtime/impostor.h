@@ -14,17 +14,22 @@
 
 namespace bb::runtime {
 
-// The scene ("subjective") camera: perspective, looking from `eye` at `target`.
+// The scene ("subjective") camera: perspective, looking from `eye` at `target` (which must differ).
 struct SceneCamera {
   glm::vec3 eye{0.0f, 1.6f, 10.0f};
   glm::vec3 target{0.0f, 1.0f, 0.0f};
-  glm::vec3 up{0.0f, 1.0f, 0.0f};   // Us, need not be unit
+  // Us, need not be unit. Parallel to the view direction (a camera looking straight down with up
+  // +Y) or zero: view() takes +Z instead (+X when the view direction is along Z), as the impostor
+  // quads and make_snapshot_camera do.
+  glm::vec3 up{0.0f, 1.0f, 0.0f};
   float fov_y = 0.7854f;            // radians, vertical field of view
   int width = 1280, height = 1024;  // viewport, pixels
   float near_plane = 0.1f, far_plane = 1000.0f;  // metres
 
   glm::mat4 view() const;
   glm::mat4 projection() const;
+  // The up vector view() takes: `up`, or another one where `up` is parallel to the view direction.
+  glm::vec3 view_up() const;
   // Pixels per metre at distance `depth` (metres along the viewing direction).
   float pixels_per_metre(float depth) const;
 };
@@ -202,7 +207,9 @@ class AtlasAllocator {
   // `first_page` (an atlas shared with other allocators: ImpostorConfig::first_page).
   AtlasAllocator(int page_size, int max_pages, const WindowSizes& sizes, int first_page = 0);
 
-  // A free window of class `size_class`; nullopt when every page is in use and full.
+  // A free window of class `size_class`; nullopt when every page is in use and full, and for a
+  // class whose windows do not fit in a page (a broken contract, asserted; no window then rather
+  // than a page of none).
   std::optional<AtlasWindow> allocate(int size_class);
   void release(const AtlasWindow& w);  // `w` must come from allocate and not be released twice
   void clear();
@@ -216,6 +223,8 @@ class AtlasAllocator {
   float pixel_use() const;
   // Class of page `p` (numbered as the windows are, from first_page()), or -1 when it is unused.
   int page_class(int p) const { return pages_[static_cast<std::size_t>(p - first_page_)].size_class; }
+  // Windows in use in page `p` (numbered as page_class's).
+  int page_windows(int p) const { return pages_[static_cast<std::size_t>(p - first_page_)].used; }
 
  private:
   struct Page {

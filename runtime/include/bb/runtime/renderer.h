@@ -103,12 +103,17 @@ struct StageTimes {
 class Renderer {
  public:
   // Uploads the model (meshes, textures, baked clips) and creates the atlas (config.page_size
-  // squared, config.atlas_pages layers (0: config.max_pages), RGBA8 + one shared depth buffer),
+  // squared, config.atlas_pages layers (0: config.max_pages), RGBA8 + one shared depth buffer);
+  // a config that breaks a contract (validate_impostor_config: a page smaller than the largest
+  // window, no page, a window of no pixel, ...) returns that error, naming the setting,
   // or draws into `share_atlas`'s (not null: made for the same page size, pages, smallest window
   // and kind of snapshots; it may be destroyed first, the atlas living as long as a renderer
   // draws into it). The planner that makes the plans must use the same config (windows, page
   // size, pages, first_page). Renderers of several models sharing one atlas, each with
   // shared_atlas_config(config, k, n), let draw_many draw all their blended quads in one draw.
+  // The atlas's pictures are those of the plans this renderer drew: a planner whose plans another
+  // renderer drew needs FramePlanner::invalidate() before this one draws its plans
+  // (holds_snapshots_for).
   static Result<std::unique_ptr<Renderer>> create(const Model& model, const ImpostorConfig& config = {},
                                                   const Renderer* share_atlas = nullptr);
   ~Renderer();
@@ -117,10 +122,16 @@ class Renderer {
 
   // Draws one frame into the currently bound draw framebuffer, with the plan's camera viewport
   // (0, 0, width, height). Does not clear it. Snapshots first (they change the atlas), then
-  // geometry, then impostors. `plan` must come from a FramePlanner of the same model and config.
+  // geometry, then impostors. `plan` must come from a FramePlanner of the same model and config,
+  // whose earlier plans this renderer drew (holds_snapshots_for: asserted).
   // GL state left changed: program 0, VAO 0, the textures bound to units 0-6 (no sampler objects
   // left bound), viewport, depth test on (LESS, writes on), blending, alpha to coverage and face
   // culling off (multisampling as found).
+  // The snapshot passes into the atlas do not take the game's scissor test, polygon offset,
+  // polygon mode, rasterizer discard, colour masks or (multisampled snapshots) sample masking:
+  // each is turned off there and put back as found, with the draw framebuffer, the viewport and
+  // the clip distances 0-3. The game's scissor rectangle, polygon offset and masks still apply to
+  // the geometry and the impostor quads, drawn into its framebuffer.
   void draw(const FramePlan& plan, const DrawOptions& options = {});
   // One frame of several models' crowds (renderers[k] draws plans[k], planned with one camera,
   // e.g. by FramePlanner::plan_many), as draw() would each, but by stage: every renderer's
@@ -140,6 +151,12 @@ class Renderer {
   static void draw_many(std::span<Renderer* const> renderers, std::span<const FramePlan* const> plans,
                         const DrawOptions& options = {});
   static constexpr int kMaxImpostorLayers = 8;
+  // Whether this renderer's atlas holds the snapshots `plan` draws from earlier plans: true when the
+  // plan needs none (FramePlan::cache_plans_before 0: a new planner's or one just invalidated) or
+  // when this renderer took the last snapshots of the plan's cache. False for a renderer made anew
+  // (or another one) drawing an existing planner's plans: its quads would show empty windows. Call
+  // FramePlanner::invalidate() first.
+  bool holds_snapshots_for(const FramePlan& plan) const;
   // The directional light (world, towards the light; normalised here; default (0.4, 0.8, 0.6)).
   // Geometry and new snapshots take it at once; impostors already in the atlas keep the light
   // they were taken under unless the renderer relights them (ImpostorConfig::relight).
