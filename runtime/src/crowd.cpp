@@ -345,6 +345,9 @@ BillboardGpu billboard(const glm::vec3& ta, const State& cs, float grow, float p
   return b;
 }
 
+// A snapshot cut at a scale (aligned, texel_per_pixel) seen this many times larger is taken anew.
+constexpr float kMagnifiedRefresh = 1.5f;
+
 // Window texels per screen pixel for a `window_size`-texel window spanning 2 `half_size` metres at
 // `depth` metres from the eye (`ppm1`: the camera's pixels per metre at depth 1).
 float window_texels_per_pixel(int window_size, float half_size, float depth, float ppm1) {
@@ -531,12 +534,19 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
   const glm::vec2 travel = bc.root_offset[f0] + (bc.root_offset[f1] - bc.root_offset[f0]) * blend;
   const glm::vec3 ta_local = (m.ta + glm::vec3(travel.x, 0.0f, travel.y)) * ch.scale;
   const glm::vec3 ta = ch.position + glm::vec3(cy * ta_local.x + sy * ta_local.z, ta_local.y, -sy * ta_local.x + cy * ta_local.z);
-  // The line of sight to Ta in the camera's frame (aligned snapshots' test of a turned camera).
-  const glm::vec3 sight_world = ta - camera.eye;
-  const float sight_len = glm::length(sight_world);
-  const glm::vec3 sight_on_screen =
-      sight_len > 0.0f ? glm::vec3(glm::dot(sight_world, cam_right), glm::dot(sight_world, cam_up), glm::dot(sight_world, fwd)) / sight_len
-                       : glm::vec3(0.0f, 0.0f, 1.0f);
+  // The screen's axes in the frame of the line of sight to Ta (aligned snapshots' test of a camera
+  // turned or rolled in place): Vo to Ta, Ho = Vo x world up (x Z looking straight down), Uo = Ho x Vo.
+  glm::vec3 screen_right = cam_right, screen_up = cam_up;
+  if (config_.aligned_snapshots) {
+    const glm::vec3 vo = ta - camera.eye;
+    glm::vec3 ho = glm::cross(vo, glm::vec3(0.0f, 1.0f, 0.0f));
+    if (glm::dot(ho, ho) < 1e-12f * glm::dot(vo, vo)) ho = glm::cross(vo, glm::vec3(0.0f, 0.0f, 1.0f));
+    if (glm::dot(ho, ho) > 0.0f) {
+      const glm::vec3 v = glm::normalize(vo), h = glm::normalize(ho), u = glm::cross(h, v);
+      screen_right = glm::vec3(glm::dot(cam_right, h), glm::dot(cam_right, u), glm::dot(cam_right, v));
+      screen_up = glm::vec3(glm::dot(cam_up, h), glm::dot(cam_up, u), glm::dot(cam_up, v));
+    }
+  }
   bool outside = false;
   for (const auto& p : planes) outside |= glm::dot(glm::vec3(p), ta) + p.w < -radius;
   // A character placed nowhere (a position, yaw or scale not finite) is tested against no plane
@@ -645,15 +655,20 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
           const float c = rotation_cosine(cs.view, view);
           // A threshold of 0 refreshes on any turn: a slow turn's cosine rounds to 1 in floats.
           // An aligned snapshot was cut on the screen of its moment and its quad is drawn on
-          // today's: where the line of sight has turned in the camera's frame (a camera turned in
-          // place, which turns no line of sight in the character's frame) it is tested as well.
-          // Measured on the flow test bed: a still camera refreshes as before (the character's
-          // frame turns first); CesiumMan orbited at 30 degrees/s, poses held, 8 degrees: the quad
-          // along the old screen's axes instead 15.5 dB, along today's 16.8, today's with a test
-          // of the axes' own turn 17.1 dB at 20 % more refreshes.
+          // today's: where the screen has turned about the line of sight's frame (a camera turned
+          // or rolled in place, which turns no line of sight in the character's frame) it is
+          // tested as well. Measured on the flow test bed: still and orbiting cameras refresh as
+          // before (the character's frame turns first); CesiumMan orbited at 30 degrees/s, poses
+          // held, 8 degrees: the quad along the old screen's axes instead 15.5 dB, along today's
+          // 16.8, today's with a test of the axes' own turn in the world 17.1 dB at 20 % more
+          // refreshes.
+          // The cosine of the turn between the two frames: (trace - 1) / 2 of the rotation.
           float ca = 1.0f;
-          if (cs.aligned) ca = glm::dot(cs.sight_on_screen, sight_on_screen);
-          const bool turned = cs.aligned && (ca < cthr || (thr <= 0.0f && cs.sight_on_screen != sight_on_screen));
+          if (cs.aligned)
+            ca = 0.5f * (glm::dot(cs.screen_right, screen_right) + glm::dot(cs.screen_up, screen_up) +
+                         glm::dot(glm::cross(cs.screen_right, cs.screen_up), glm::cross(screen_right, screen_up)) - 1.0f);
+          const bool turned =
+              cs.aligned && (ca < cthr || (thr <= 0.0f && (cs.screen_right != screen_right || cs.screen_up != screen_up)));
           if (c < cthr || (thr <= 0.0f && cs.view != view) || turned) {
             refresh = true;
             ++st.view_refreshes;
@@ -663,6 +678,19 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
             // (A leading snapshot starts off its view: how far it is from it says nothing of
             // how long it has left, so only its posture may refresh it ahead.)
             ahead = std::acos(std::clamp(c, -1.0f, 1.0f)) / thr;
+          }
+        }
+        // Magnified: a snapshot cut at a scale (aligned, or texel_per_pixel) seen larger since, by
+        // a zoom or a walk towards the eye that left its window's size class alone (up to twice as
+        // large), shows its texels blurred: refreshed past kMagnifiedRefresh. (The audit's probe: a
+        // 1.9x zoom kept 34.1 dB where a fresh snapshot gives 38.8.)
+        if (!refresh && (cs.aligned || config_.texel_per_pixel)) {
+          const float depth = glm::dot(ta - camera.eye, fwd);
+          const float tpp = window_texels_per_pixel(cs.window.size, cs.half_size * ch.scale / cs.scale, depth, ppm1);
+          if (depth > 0.0f && tpp * kMagnifiedRefresh < config_.texels_per_pixel) {
+            refresh = true;
+            ++st.window_refreshes;
+            if (budget) staleness = std::max(staleness, config_.texels_per_pixel / (tpp * kMagnifiedRefresh));
           }
         }
         if (cc.posture_test && (budget || !refresh) && posture_changed(cs.posture, posture, cc.posture_threshold * w)) {
@@ -687,7 +715,8 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
         // slower: flow test bed, --msaa 1, posture 0.1, 40 frames, impostor frame 5.06-5.10 ms
         // without, 5.98 ms with, 5.25-5.28 ms with every refresh a snapshot.
         cs.view = view;
-        cs.sight_on_screen = sight_on_screen;
+        cs.screen_right = screen_right;
+        cs.screen_up = screen_up;
         cs.led = false;
         cs.posture = posture;
         cs.taken = fs.frame;
@@ -757,7 +786,8 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
         next.picture_behind = false;
         next.taken = fs.frame;
         next.offset = glm::vec2(glm::dot(sc.ta - ta, shot_right), glm::dot(sc.ta - ta, shot_up));
-        next.sight_on_screen = sight_on_screen;  // a lead turns the eye and the axes alike: the same
+        next.screen_right = screen_right;  // a lead turns the eye and the axes alike about Ta: the same
+        next.screen_up = screen_up;
         next.rect = glm::vec4(-1, -1, 1, 1);
         glm::vec4 snap_rect = next.rect;
         if (config_.tight_quads) {

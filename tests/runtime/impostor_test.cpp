@@ -1346,6 +1346,41 @@ TEST(FramePlanner, AlignedSnapshotsRefreshWhenTheCameraTurnsInPlace) {
   EXPECT_EQ(planner.plan(crowd, rolled, 0.0f, RenderMode::kImpostor).stats.view_refreshes, 1);
 }
 
+// A snapshot cut at a scale (aligned here) and then seen larger, by a zoom that leaves its window's
+// size class alone, is taken anew once it is seen 1.5 times larger than cut (kMagnifiedRefresh):
+// until then its texels were drawn blurred, however long the scene stood still. A snapshot that
+// fills its window (the default) keeps it.
+TEST(FramePlanner, MagnifiedSnapshotsAreTakenAnew) {
+  Model m = tiny_model();
+  Crowd crowd(m);
+  crowd.add(Character{});
+  ImpostorConfig cfg = view_test_only(8.0f);
+  cfg.aligned_snapshots = true;
+  cfg.texels_per_pixel = 1.0f;
+  FramePlanner planner(m, cfg);
+  FramePlanner filling(m, view_test_only(8.0f));
+  auto zoomed = [](float zoom) {
+    SceneCamera cam = facing_camera(30.0f);
+    cam.fov_y = 2.0f * std::atan(std::tan(0.5f * cam.fov_y) / zoom);
+    return cam;
+  };
+  auto window_width = [](const FramePlan& p) { return p.billboards.at(0).uv_rect.z - p.billboards.at(0).uv_rect.x; };
+  const FramePlan& p0 = planner.plan(crowd, zoomed(1.0f), 0.0f, RenderMode::kImpostor);
+  ASSERT_EQ(p0.stats.snapshots, 1);
+  const float w0 = window_width(p0);
+  EXPECT_EQ(filling.plan(crowd, zoomed(1.0f), 0.0f, RenderMode::kImpostor).stats.snapshots, 1);
+  const FramePlan& p1 = planner.plan(crowd, zoomed(1.3f), 0.0f, RenderMode::kImpostor);
+  EXPECT_EQ(p1.stats.snapshots, 0);
+  EXPECT_EQ(window_width(p1), w0);
+  const FramePlan& p2 = planner.plan(crowd, zoomed(1.6f), 0.0f, RenderMode::kImpostor);
+  EXPECT_EQ(p2.stats.snapshots, 1);
+  EXPECT_EQ(p2.stats.window_refreshes, 1);
+  EXPECT_EQ(window_width(p2), w0);  // the same window size: the zoom alone asked for it
+  EXPECT_EQ(filling.plan(crowd, zoomed(1.6f), 0.0f, RenderMode::kImpostor).stats.snapshots, 0);
+  // Measured from the new snapshot: 2.2 is 1.375 times 1.6.
+  EXPECT_EQ(planner.plan(crowd, zoomed(2.2f), 0.0f, RenderMode::kImpostor).stats.snapshots, 0);
+}
+
 // `n` characters standing on a circle of `radius` metres about the origin, facing it.
 Crowd standing_ring(const Model& m, int n, float radius) {
   Crowd crowd(m);

@@ -419,6 +419,7 @@ struct FrameStats {
   // Characters whose windows were taken back for others this frame: characters not drawn as
   // impostors in it (culled, or geometry), the longest undrawn first, when the atlas was full.
   int atlas_reclaimed = 0;
+  // window_refreshes: a new window size class, or a snapshot cut at a scale seen 1.5 times larger.
   int posture_refreshes = 0, view_refreshes = 0, window_refreshes = 0, new_snapshots = 0;
   int deferred_refreshes = 0;  // stale impostors kept one more frame by CacheConfig::refresh_budget
   int ahead_refreshes = 0;     // impostors refreshed before their thresholds (CacheConfig::ahead_fraction)
@@ -543,12 +544,12 @@ class FramePlanner {
     // cards' windows, in use): a window held by a character not drawn in the frame being planned
     // may be taken back when the atlas is full (reclaim), the longest undrawn first.
     std::uint32_t drawn = 0;
-    // Aligned snapshots: the line of sight to Ta in the camera's frame (right, up, forward) when
-    // the snapshot was cut. Its quad is drawn along the current screen axes, which gives the picture
-    // back while this direction holds (a still camera, one orbiting the crowd); a camera turned in
-    // place (mouse look) turns it and no line of sight in the character's frame: refreshed when it
-    // has turned past the view threshold.
-    glm::vec3 sight_on_screen{0.0f, 0.0f, 1.0f};
+    // Aligned snapshots: the screen's right and up axes when the snapshot was cut, in the frame of
+    // the line of sight to Ta (section 4.2's Ho, Uo, Vo, taken with the world's up). Its quad is drawn
+    // along the current screen axes, which gives the picture back while these hold (a still camera,
+    // one orbiting the crowd); a camera turned or rolled in place (mouse look) turns them and no line
+    // of sight in the character's frame: refreshed when they have turned past the view threshold.
+    glm::vec3 screen_right{1.0f, 0.0f, 0.0f}, screen_up{0.0f, 1.0f, 0.0f};
     glm::vec4 rect{-1, -1, 1, 1};  // part of the window the last snapshot used
     AtlasWindow window;
     bool valid = false;
