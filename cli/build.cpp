@@ -49,6 +49,9 @@ struct Job {
   double seconds = 0;
   exporter::BuildTimes times;
   std::vector<mesher::LodReport> lods;
+  // Levels that fail their own checks (not closed, not manifold, self-intersecting): still written,
+  // and said on stderr and in --json, so that a batch of variants shows which to look at.
+  std::vector<std::string> warnings;
 };
 
 void run_job(Job& job, const BuildArgs& a) {
@@ -101,7 +104,15 @@ void run_job(Job& job, const BuildArgs& a) {
     }
   }
   job.times = built->times;
-  for (const auto& l : built->input.lods) job.lods.push_back(l.report);
+  for (const auto& l : built->input.lods) {
+    const mesher::LodReport& r = l.report;
+    job.lods.push_back(r);
+    std::string what;
+    if (!r.closed) what += ", not closed";
+    if (!r.manifold) what += ", not manifold";
+    if (r.self_intersection_count > 0) what += ", " + std::to_string(r.self_intersection_count) + " pairs of triangles intersect";
+    if (!what.empty()) job.warnings.push_back(job.output + ": level " + std::to_string(r.level) + what);
+  }
   job.ok = true;
   finish();
 }
@@ -198,6 +209,7 @@ int run(BuildArgs a) {
     if (batch || !a.json)
       std::fprintf(stderr, "[%d/%zu] %s: %s (%.2f s)\n", d, jobs.size(), jobs[i].name.c_str(),
                    jobs[i].ok ? jobs[i].output.c_str() : ("FAILED: " + jobs[i].error).c_str(), jobs[i].seconds);
+    for (const auto& w : jobs[i].warnings) std::fprintf(stderr, "bodybuilder build: warning: %s\n", w.c_str());
   });
   double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   int failed = static_cast<int>(std::count_if(jobs.begin(), jobs.end(), [](const Job& j) { return !j.ok; }));
@@ -220,6 +232,7 @@ int run(BuildArgs a) {
           lods.push_back({{"triangles", r.triangles}, {"hausdorff_rel", a.no_errors ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(r.hausdorff_rel)}, {"closed", r.closed},
                           {"manifold", r.manifold}, {"self_intersections", r.self_intersection_count}});
         o["lods"] = lods;
+        o["warnings"] = job.warnings;
       }
       j["outputs"].push_back(o);
     }

@@ -211,6 +211,7 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
     if (surface) {
       SkinError e = skin_error(*surface, lod.mesh, skin);
       r.hausdorff_m = e.hausdorff_m;
+      r.errors_measured = true;
       r.mean_m = e.mean_m;
       r.hausdorff_rel = e.hausdorff_m / height;
       r.mean_rel = e.mean_m / height;

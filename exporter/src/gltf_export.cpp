@@ -64,10 +64,12 @@ tinygltf::Value to_value(const mesher::LodReport& r, int level) {
   o["level"] = tinygltf::Value(level);
   o["triangles"] = tinygltf::Value(static_cast<int>(r.triangles));
   o["vertices"] = tinygltf::Value(static_cast<int>(r.vertices));
-  o["hausdorff_m"] = tinygltf::Value(r.hausdorff_m);
-  o["mean_m"] = tinygltf::Value(r.mean_m);
-  o["hausdorff_rel"] = tinygltf::Value(r.hausdorff_rel);
-  o["mean_rel"] = tinygltf::Value(r.mean_rel);
+  if (r.errors_measured) {  // unmeasured (build --no-errors): left out rather than a perfect 0
+    o["hausdorff_m"] = tinygltf::Value(r.hausdorff_m);
+    o["mean_m"] = tinygltf::Value(r.mean_m);
+    o["hausdorff_rel"] = tinygltf::Value(r.hausdorff_rel);
+    o["mean_rel"] = tinygltf::Value(r.mean_rel);
+  }
   o["closed"] = tinygltf::Value(r.closed);
   o["manifold"] = tinygltf::Value(r.manifold);
   o["self_intersections"] = tinygltf::Value(static_cast<int>(r.self_intersection_count));

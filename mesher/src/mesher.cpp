@@ -1278,6 +1278,7 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
       distances_to_mesh(mesh.positions, mesh.indices, reference_points, d2);
       double h1 = *std::max_element(d1.begin(), d1.end()), h2 = *std::max_element(d2.begin(), d2.end());
       r.hausdorff_m = std::max(h1, h2);
+      r.errors_measured = true;
       r.mean_m = 0.5 * (std::accumulate(d1.begin(), d1.end(), 0.0) / double(d1.size()) +
                         std::accumulate(d2.begin(), d2.end(), 0.0) / double(d2.size()));
       r.hausdorff_rel = r.hausdorff_m / m.height;

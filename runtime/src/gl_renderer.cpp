@@ -132,6 +132,7 @@ uniform vec4 u_color;
 uniform float u_cutoff;  // < 0: opaque
 uniform vec3 u_light;    // unit, world, towards the light
 uniform float u_lit;     // 1: lit; 0: unlit (KHR_materials_unlit: the colour as is)
+uniform vec3 u_emissive; // glTF emissiveFactor: light of its own, added after the shading
 #ifdef BB_MASKED
 uniform float u_blend;   // 1: alpha BLEND (premultiplied output); 0: opaque
 #endif
@@ -172,11 +173,18 @@ void main() {
   vec3 n = normalize(v_nrm);
   if (!gl_FrontFacing) n = -n;
 #ifdef BB_NORMALS
-  o_color = vec4(c.rgb * a, a);
-  o_normal = vec4(vec3(dot(n, v_ho), dot(n, v_uo), dot(n, v_vo)) * 0.5 + 0.5, u_lit) * a;
+  // The impostor shader lights a texel as colour * mix(1, light, share): with an emissive colour
+  // the texel holds albedo + emission and the lit share is the albedo's part of its luminance, so a
+  // texel of emission alone stays as bright whatever the light (exact for grey, else close).
+  const vec3 lum = vec3(0.2126, 0.7152, 0.0722);
+  vec3 ce = c.rgb + u_emissive;
+  float all_light = dot(ce, lum);
+  float share = all_light > 0.0 ? dot(c.rgb, lum) / all_light : 1.0;
+  o_color = vec4(ce * a, a);
+  o_normal = vec4(vec3(dot(n, v_ho), dot(n, v_uo), dot(n, v_vo)) * 0.5 + 0.5, u_lit * share) * a;
 #else
   float l = mix(1.0, 0.35 + 0.65 * max(dot(n, u_light), 0.0), u_lit);
-  o_color = vec4(c.rgb * (l * a), a);
+  o_color = vec4((c.rgb * l + u_emissive) * a, a);
 #endif
 #ifdef BB_OFFSET
   o_offset = vec2(v_offset, 1.0);
@@ -743,7 +751,7 @@ struct Renderer::Impl {
   static constexpr std::size_t kShadeVariants = 6;
   struct ShadeProgram {
     std::array<GLuint, kShadeVariants> prog{};
-    std::array<GLint, kShadeVariants> color{}, cutoff{}, lit{}, blend{}, viewproj{};
+    std::array<GLint, kShadeVariants> color{}, cutoff{}, lit{}, emissive{}, blend{}, viewproj{};
     static std::size_t variant(const Material& m) {
       return (m.alpha_mask || m.alpha_blend ? 2 : m.texture >= 0 ? 1 : 0) + (m.vertex_colors ? 3 : 0);
     }
@@ -1026,6 +1034,7 @@ struct Renderer::Impl {
     glProgramUniform1f(sp.prog[v], sp.cutoff[v], m.alpha_blend ? 0.0f : m.alpha_cutoff);
     glProgramUniform1f(sp.prog[v], sp.blend[v], m.alpha_blend ? 1.0f : 0.0f);
     glProgramUniform1f(sp.prog[v], sp.lit[v], m.unlit ? 0.0f : 1.0f);
+    glProgramUniform3fv(sp.prog[v], sp.emissive[v], 1, glm::value_ptr(m.emissive));
     if (v % 3 > 0) {
       glBindTextureUnit(1, m.texture >= 0 ? textures[m.texture] : white);
       glBindSampler(1, samplers[material]);
@@ -1319,6 +1328,7 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
       sp.color[v] = glGetUniformLocation(*p, "u_color");
       sp.cutoff[v] = glGetUniformLocation(*p, "u_cutoff");
       sp.lit[v] = glGetUniformLocation(*p, "u_lit");
+      sp.emissive[v] = glGetUniformLocation(*p, "u_emissive");
       sp.blend[v] = glGetUniformLocation(*p, "u_blend");
       sp.viewproj[v] = glGetUniformLocation(*p, "u_viewproj");
       glProgramUniform1i(*p, glGetUniformLocation(*p, "u_palette_size"), static_cast<GLint>(model.palette.size()));

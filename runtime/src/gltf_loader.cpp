@@ -576,6 +576,8 @@ struct Builder {
       if (const int si = c.m.textures[ti].sampler; si >= 0) mat.sampler = sampler_table[si];
     }
     mat.unlit = gm.extensions.count("KHR_materials_unlit") > 0;
+    if (const auto& e = gm.emissiveFactor; e.size() == 3 && finite_all(e))
+      mat.emissive = glm::clamp(glm::vec3(e[0], e[1], e[2]), glm::vec3(0.0f), glm::vec3(1.0f));
     if (gm.alphaMode == "MASK") {
       mat.alpha_mask = true;
       mat.alpha_cutoff = static_cast<float>(gm.alphaCutoff);

@@ -18,6 +18,8 @@
 #include <webp/encode.h>
 
 #include "bb/runtime/model.h"
+#include "bb/runtime/portrait.h"
+#include "gl_context.h"
 
 namespace bb::runtime {
 namespace {
@@ -340,6 +342,48 @@ TEST(GltfLoader, UnlitMaterialsAreMarked) {
   ASSERT_EQ(lod.primitives.size(), 2u);
   EXPECT_TRUE(m->materials[lod.primitives[0].material].unlit);
   EXPECT_FALSE(m->materials[lod.primitives[1].material].unlit);
+}
+
+// glTF's emissiveFactor is light of the surface's own, added after the shading: a black square that
+// gives off orange is drawn orange, as geometry and as an impostor (lit as drawn too); without it, black.
+TEST(GltfLoader, EmissiveColourIsDrawn) {
+  auto square = [](const json& material) {
+    GltfFile f;
+    const int pos = f.accessor(f.view(std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0}), kFloat, 4, "VEC3");
+    const int nrm = f.accessor(f.view(std::vector<float>{0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1}), kFloat, 4, "VEC3");
+    const int ind = f.accessor(f.view(std::vector<std::uint16_t>{0, 1, 2, 2, 1, 3}), kUShort, 6, "SCALAR");
+    f.mesh({{"POSITION", pos}, {"NORMAL", nrm}}, ind, 0);
+    f.j["materials"] = json::array({material});
+    return f;
+  };
+  const json black = {{"pbrMetallicRoughness", {{"baseColorFactor", {0, 0, 0, 1}}}}};
+  json glowing = black;
+  glowing["emissiveFactor"] = {1.0, 0.5, 0.0};
+  auto lit = load_model(square(glowing).write("emissive"));
+  ASSERT_TRUE(lit.ok()) << lit.error().message();
+  EXPECT_EQ(lit->materials.at(0).emissive, glm::vec3(1.0f, 0.5f, 0.0f));
+  auto dark = load_model(square(black).write("black"));
+  ASSERT_TRUE(dark.ok()) << dark.error().message();
+  EXPECT_EQ(dark->materials.at(0).emissive, glm::vec3(0.0f));
+  REQUIRE_GL();
+  for (const RenderMode mode : {RenderMode::kGeometry, RenderMode::kImpostor}) {
+    PortraitOptions o;
+    o.mode = mode;
+    o.width = o.height = 64;
+    o.elevation_deg = 0.0f;
+    auto centre = [&](const Model& m) {
+      auto img = render_portrait(m, o);
+      EXPECT_TRUE(img.ok()) << img.error().message();
+      const std::size_t at = 4 * (32 * 64 + 32);
+      return img.ok() ? glm::ivec4(img->rgba[at], img->rgba[at + 1], img->rgba[at + 2], img->rgba[at + 3]) : glm::ivec4(-1);
+    };
+    const glm::ivec4 orange = centre(*lit), none = centre(*dark);
+    EXPECT_EQ(orange.a, 255) << "mode " << static_cast<int>(mode);
+    EXPECT_GE(orange.r, 250) << "mode " << static_cast<int>(mode);
+    EXPECT_NEAR(orange.g, 128, 4) << "mode " << static_cast<int>(mode);
+    EXPECT_LE(orange.b, 3) << "mode " << static_cast<int>(mode);
+    EXPECT_EQ(none, glm::ivec4(0, 0, 0, 255)) << "mode " << static_cast<int>(mode);
+  }
 }
 
 // EXT_texture_webp: a WebP image (lossless here, so exact) is decoded for the texture whose extension

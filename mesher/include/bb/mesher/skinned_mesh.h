@@ -71,6 +71,7 @@ struct SkinnedMesh {
 struct LodReport {
   int level = 0;
   size_t triangles = 0, vertices = 0;
+  bool errors_measured = false;              // false: the distances below were not measured (0)
   double hausdorff_m = 0, mean_m = 0;        // symmetric Hausdorff and mean distance to the skin
   double hausdorff_rel = 0, mean_rel = 0;    // the same over body height
   bool closed = false, manifold = false, oriented = false, self_intersections = true;

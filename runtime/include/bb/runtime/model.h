@@ -100,6 +100,8 @@ struct Material {
   bool alpha_blend = false;
   bool vertex_colors = false;  // its primitives' vertices carry colours (Vertex::color)
   bool unlit = false;          // KHR_materials_unlit: drawn in its base colour, with no light
+  // glTF emissiveFactor (linear), added to the shaded colour; emissiveTexture is not read.
+  glm::vec3 emissive{0.0f};
 };
 
 struct Texture {
