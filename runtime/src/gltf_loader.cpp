@@ -558,7 +558,7 @@ struct Builder {
     if (mi < 0 || mi >= static_cast<int>(c.m.materials.size())) {
       if (default_material[colored] < 0) {
         default_material[colored] = static_cast<int>(out.materials.size());
-        Material mat{colored ? glm::vec4(1.0f) : glm::vec4(0.8f, 0.8f, 0.8f, 1.0f)};  // glTF's default is white
+        Material mat{glm::vec4(1.0f)};  // glTF's default material: white, lit
         mat.vertex_colors = colored;
         out.materials.push_back(mat);
       }
