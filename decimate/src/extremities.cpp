@@ -3,12 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <atomic>
+#include <cstdint>
 #include <cstring>
 #include <memory>
 #include <thread>
 #include <unordered_map>
 
 #include "triangle_grid.h"
+#include "bb/mesher/mesh_check.h"
 #include "bb/parallel.h"
 
 namespace bb::decimate {
@@ -130,7 +132,7 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
   const size_t total = mesh.indices.size() / 3;
   const size_t extremity = mesh.extremity_triangle_count();
   if (extremity <= opt.budget) {
-    if (report) *report = ExtremityReport{Report{total, total, nv, 0, 0, 0, 0}, {}, {}, {}, {}};
+    if (report) *report = ExtremityReport{Report{total, total, nv, 0, 0, 0, 0}, {}, {}, {}, {}, {}};
     if (snapshot) *snapshot = mesh;
     return mesh;
   }
@@ -161,6 +163,7 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
     Result<mesher::SkinnedMesh> result = Error{"", "", "not run"};
     size_t chosen = 0;
     Distance distance;
+    size_t self_intersections = 0;  // of the kept candidate's part alone
     mesher::SkinnedMesh snapshot;
   };
   std::vector<Job> jobs;
@@ -178,7 +181,16 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
     const PartMesh& against = has_ref ? ref[j.part] : mine;
     std::unique_ptr<ReferenceDistance>& rd = cache->distance[j.part];  // one job per part
     if (measure && !rd) rd = std::make_unique<ReferenceDistance>(against.sub.positions, against.sub.indices);
+    // The nearest candidate without self-intersections is kept: the decimator's rules are local
+    // (normals of the faces that move), so a collapse may still push a fingertip or a finger's side
+    // through a neighbouring finger, and the candidate nearest by Hausdorff can be such a one. A
+    // candidate is checked (CGAL, the part alone) only when it would be kept; `best` bounds the
+    // measurements by the clean ones only. Where every candidate intersects, the one with the fewest
+    // intersections (then the nearest) is kept.
     double best = 1e30;
+    bool clean = false;
+    size_t fewest = SIZE_MAX;
+    double fallback = 1e30;
     PartMesh snap;
     for (size_t c = 0; c < opt.candidates.size(); ++c) {
       const Candidate& cand = opt.candidates[c];
@@ -209,12 +221,21 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
         return;
       }
       auto m = rd->measure(r->positions, r->indices, best, report != nullptr);
-      if (m.complete && (c == 0 || m.distance.hausdorff_m < best)) {
+      if (!m.complete || !(m.distance.hausdorff_m < best || (c == 0 && !clean))) continue;
+      const size_t crossings = mesher::check_mesh(r->positions, r->indices, true).self_intersections;
+      if (crossings == 0) {
+        clean = true;
         best = m.distance.hausdorff_m;
-        j.result = std::move(r);
-        j.chosen = c;
-        j.distance = m.distance;
+      } else if (clean || crossings > fewest || (crossings == fewest && !(m.distance.hausdorff_m < fallback))) {
+        continue;
+      } else {
+        fewest = crossings;
+        fallback = m.distance.hausdorff_m;
       }
+      j.result = std::move(r);
+      j.chosen = c;
+      j.distance = m.distance;
+      j.self_intersections = crossings;
     }
   };
   parallel_for(jobs.size(), opt.threads, [&](std::size_t i) { run(jobs[i]); });
@@ -251,6 +272,7 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
       report->chosen.push_back(j.chosen);
       report->hausdorff_m.push_back(j.distance.hausdorff_m);
       report->mean_m.push_back(j.distance.mean_m);
+      report->self_intersections.push_back(j.self_intersections);
     }
     Distance d = mesh_distance(mesh.positions, mesh.indices, out.positions, out.indices);
     rep.hausdorff_m = d.hausdorff_m;

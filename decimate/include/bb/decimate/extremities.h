@@ -45,7 +45,8 @@ struct Candidate {
 // Best of several candidates per part: each part is decimated to its share of the budget (shares
 // from `mesh`'s parts) once per candidate, each result's symmetric Hausdorff distance to the
 // reference's part (or the mesh's own, without a reference) is measured (ReferenceDistance) and
-// the nearest is kept (the first on ties). `reference` and `restart`: meshes with the same head,
+// the nearest without self-intersections (check_mesh on the part alone) is kept (the first on
+// ties); only where every candidate has some, the one with the fewest (then the nearest). `reference` and `restart`: meshes with the same head,
 // hands and feet (same part tags, seam loops at the same positions), e.g. LOD 0 before decimation
 // and a lightly decimated copy of it, so that a part decimated from them still meets `mesh`'s
 // zippers. Locked vertices, the normal rules and skin-weight influences are decimate()'s; only the
@@ -70,7 +71,9 @@ struct ExtremityReport {
   Report report;                  // as decimate_extremities' report (whole mesh against `mesh`)
   std::vector<uint8_t> parts;     // per part decimated: its tag,
   std::vector<size_t> chosen;     // the candidate kept (index into ExtremityOptions::candidates),
-  std::vector<double> hausdorff_m, mean_m;  // and its distance to the reference's part
+  std::vector<double> hausdorff_m, mean_m;  // and its distance to the reference's part,
+  std::vector<size_t> self_intersections;   // and its intersecting triangle pairs (the part alone;
+                                            // 0 unless every candidate had some)
 };
 // `snapshot`: `mesh` with those copies as its extremities (a restart mesh for coarser levels).
 // Each part's locked vertices: those shared with any other triangle, on the part's border, or
