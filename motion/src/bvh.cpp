@@ -8,8 +8,11 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
+#include <span>
 #include <sstream>
 
+#include <glm/gtc/constants.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 
 namespace bb::motion {
@@ -222,8 +225,8 @@ namespace {
 // convention, the upper arm in another) goes to the first role still open.
 enum Role {
   kHips, kSpine0, kSpine1, kNeck0, kNeck1, kHead,
-  kLCollar, kLUpperArm, kLForearm, kLWrist, kLFingers, kLThigh, kLShin, kLFoot, kLToe,
-  kRCollar, kRUpperArm, kRForearm, kRWrist, kRFingers, kRThigh, kRShin, kRFoot, kRToe,
+  kLCollar, kLUpperArm, kLForearm, kLWrist, kLFingers, kLThigh, kLShin, kLFoot, kLToe, kLToeEnd,
+  kRCollar, kRUpperArm, kRForearm, kRWrist, kRFingers, kRThigh, kRShin, kRFoot, kRToe, kRToeEnd,
   kRoleCount
 };
 struct RoleNames {
@@ -249,6 +252,7 @@ const std::vector<RoleNames>& role_names() {
       {kLShin, {"*leg", "*shin", "*knee", "*lowerleg", "lowerleg*", "calf*", "*calf", "*tibia"}},
       {kLFoot, {"*foot", "foot*", "*ankle"}},
       {kLToe, {"*toebase", "*toe", "*toes", "ball*", "toe*"}},
+      {kLToeEnd, {}},  // the toe's first child (its end site)
   };
   static const std::vector<RoleNames> all = [] {
     std::vector<RoleNames> v = central;
@@ -307,6 +311,7 @@ std::array<int, kRoleCount> find_roles(const BvhFile& bvh) {
     int o = s * (kRCollar - kLCollar);
     if (at[kLFingers + o] < 0 && at[kLWrist + o] >= 0) at[kLFingers + o] = first_child(at[kLWrist + o]);
     if (at[kLToe + o] < 0 && at[kLFoot + o] >= 0) at[kLToe + o] = first_child(at[kLFoot + o]);
+    if (at[kLToe + o] >= 0) at[kLToeEnd + o] = first_child(at[kLToe + o]);
   }
   return at;
 }
@@ -334,9 +339,11 @@ const Link kLinks[] = {
     {"l_hip", kLThigh, kLShin},
     {"l_knee", kLShin, kLFoot},
     {"l_ankle", kLFoot, kLToe},
+    {"l_metatarsophalangeal", kLToe, kLToeEnd},
     {"r_hip", kRThigh, kRShin},
     {"r_knee", kRShin, kRFoot},
     {"r_ankle", kRFoot, kRToe},
+    {"r_metatarsophalangeal", kRToe, kRToeEnd},
 };
 // Our child joint whose direction from `ours` is the link.
 const char* child_of(const std::string& ours) {
@@ -345,7 +352,8 @@ const char* child_of(const std::string& ours) {
       {"l_sternoclavicular", "l_shoulder"}, {"l_shoulder", "l_elbow"}, {"l_elbow", "l_wrist"}, {"l_wrist", "l_middle1"},
       {"r_sternoclavicular", "r_shoulder"}, {"r_shoulder", "r_elbow"}, {"r_elbow", "r_wrist"}, {"r_wrist", "r_middle1"},
       {"l_hip", "l_knee"}, {"l_knee", "l_ankle"}, {"l_ankle", "l_metatarsophalangeal"},
-      {"r_hip", "r_knee"}, {"r_knee", "r_ankle"}, {"r_ankle", "r_metatarsophalangeal"}};
+      {"r_hip", "r_knee"}, {"r_knee", "r_ankle"}, {"r_ankle", "r_metatarsophalangeal"},
+      {"l_metatarsophalangeal", "l_toe_tip"}, {"r_metatarsophalangeal", "r_toe_tip"}};
   auto it = m.find(ours);
   return it == m.end() ? nullptr : it->second;
 }
@@ -452,6 +460,67 @@ void bvh_forward(const BvhFile& bvh, const std::vector<float>* frame, std::vecto
   }
 }
 
+// Our feet's points that must stay above the floor (y = 0), the toe joint, and the root's vertical DOF.
+struct Floor {
+  int ankle[2], ball[2], tip[2];
+  int ty;  // posture index of the root's Y translation
+};
+std::optional<Floor> find_floor(const modeler::Skeleton& sk) {
+  Floor f{};
+  const char* side[2] = {"l_", "r_"};
+  for (int s = 0; s < 2; ++s) {
+    f.ankle[s] = sk.find_joint(std::string(side[s]) + "ankle");
+    f.ball[s] = sk.find_joint(std::string(side[s]) + "metatarsophalangeal");
+    f.tip[s] = sk.find_joint(std::string(side[s]) + "toe_tip");
+    if (f.ankle[s] < 0 || f.ball[s] < 0 || f.tip[s] < 0) return std::nullopt;
+    if (sk.joints()[f.ball[s]].dofs.size() != 1 || sk.joints()[f.ball[s]].parent != f.ankle[s] ||
+        sk.joints()[f.tip[s]].parent != f.ball[s])
+      return std::nullopt;
+  }
+  f.ty = -1;
+  const modeler::Joint& root = sk.joints()[0];
+  for (size_t k = 0; k < root.dofs.size(); ++k)
+    if (root.dofs[k].type == modeler::DofType::kTranslation && root.dofs[k].axis == glm::vec3(0, 1, 0))
+      f.ty = root.first_dof + static_cast<int>(k);
+  if (f.ty < 0) return std::nullopt;
+  return f;
+}
+
+// The captured feet go below the floor where our joint limits differ from the actor's (our ankle
+// dorsiflexes 20 degrees: a deep crouch on flat feet points our toes into the floor) and where the
+// capture itself does (toe markers). A toe tip below the floor extends its toe joint as far as that
+// lifts it; then, if any foot point is still below, the whole body rises by that much.
+void keep_above_floor(const modeler::Skeleton& sk, const Floor& fl, modeler::Posture& p, std::span<glm::mat4> w) {
+  sk.world_transforms(p, w);
+  for (int s = 0; s < 2; ++s) {
+    const modeler::Joint& ball = sk.joints()[fl.ball[s]];
+    const glm::vec3 tip_offset = sk.joints()[fl.tip[s]].offset;
+    const glm::mat3 ankle_rot(w[fl.ankle[s]]);
+    const glm::vec3 ball_pos(w[fl.ball[s]][3]);
+    auto tip_y = [&](float v) { return (ball_pos + ankle_rot * dof_rotation(ball, &v) * tip_offset).y; };
+    float& v = p[ball.first_dof];
+    if (tip_y(v) >= 0) continue;
+    // The extension that lifts the tip (on either side of the current value), within the limits.
+    const float hi = tip_y(ball.dofs[0].max) > tip_y(ball.dofs[0].min) ? ball.dofs[0].max : ball.dofs[0].min;
+    if (tip_y(hi) <= tip_y(v)) continue;
+    if (tip_y(hi) < 0) {
+      v = hi;
+      continue;
+    }
+    float a = v, b = hi;  // tip below at a, above at b
+    for (int it = 0; it < 20; ++it) {
+      const float m = 0.5f * (a + b);
+      (tip_y(m) < 0 ? a : b) = m;
+    }
+    v = b;
+  }
+  sk.world_transforms(p, w);
+  float low = 0;
+  for (int s = 0; s < 2; ++s)
+    for (int j : {fl.ankle[s], fl.ball[s], fl.tip[s]}) low = std::min(low, w[j][3].y);
+  p[fl.ty] -= low;
+}
+
 }  // namespace
 
 std::vector<glm::vec3> world_positions(const BvhFile& bvh, size_t frame) {
@@ -485,7 +554,9 @@ Result<Clip> retarget(const BvhFile& bvh, const modeler::Skeleton& sk, const std
   // limb bends in (their own DOFs bend only about that hinge).
   for (Mapped& m : links)
     for (const Mapped& c : links)
-      if (c.ours == m.child && c.from == m.to && sk.joints()[c.ours].dofs.size() <= 2) m.next = c.to;
+      if (c.ours == m.child && c.from == m.to && sk.joints()[c.ours].dofs.size() <= 2 && c.from != at[kLToe] &&
+          c.from != at[kRToe])  // (not the ankle: the toes' bend is no plane to turn the foot into)
+        m.next = c.to;
 
   const size_t nb = bvh.joints.size();
   std::vector<glm::mat3> brot(nb);
@@ -500,11 +571,43 @@ Result<Clip> retarget(const BvhFile& bvh, const modeler::Skeleton& sk, const std
   // (In any unit a leg is longer than this; a shorter one would scale the root's travel past float's range.)
   if (!(bvh_leg > 1e-6f)) return Error{std::string(file), "HIERARCHY", "the BVH leg has no length"};
   float scale = our_leg / bvh_leg;
-  // Ground: the lowest ankle in the first frame sits where ours does in the neutral posture.
-  bvh_fk(&bvh.frames[0]);
-  float bvh_ground = std::min(bpos[bl_ankle].y, bpos[at[kRFoot]].y);
+  // Ground: the lower ankle sits where ours does in the neutral posture, at the height the lower ankle
+  // has in most frames (the median over the clip: one foot is down in most frames of a capture, and a
+  // single frame may be a glitch; CMU's first frames often hold the ankles 0.3-0.8 units lower than
+  // the standing that follows, which made the whole clip float 4 cm).
+  std::vector<float> lower_ankle;
+  lower_ankle.reserve(bvh.frames.size());
+  for (const auto& frame : bvh.frames) {
+    bvh_fk(&frame);
+    lower_ankle.push_back(std::min(bpos[bl_ankle].y, bpos[at[kRFoot]].y));
+  }
+  std::nth_element(lower_ankle.begin(), lower_ankle.begin() + lower_ankle.size() / 2, lower_ankle.end());
+  const float bvh_ground = lower_ankle[lower_ankle.size() / 2];
   float our_ankle_y = rest[sk.find_joint("l_ankle")][3].y;
   glm::vec3 root_rest = sk.joints()[0].offset;
+
+  // Our hip joints' midpoint in the root's frame.
+  const glm::vec3 our_hips_local =
+      0.5f * (glm::vec3(rest[sk.find_joint("l_hip")][3]) + glm::vec3(rest[sk.find_joint("r_hip")][3])) -
+      glm::vec3(rest[0][3]);
+  // The root's rotation DOFs; yaw (Y), pitch (X), roll (Z) in this order are set in closed form.
+  std::vector<int> root_rot;
+  for (size_t k = 0; k < sk.joints()[0].dofs.size(); ++k)
+    if (sk.joints()[0].dofs[k].type == modeler::DofType::kRotation) root_rot.push_back(static_cast<int>(k));
+  const bool root_euler = [&] {
+    if (root_rot.size() != 3) return false;
+    const glm::vec3 axes[3] = {{0, 1, 0}, {1, 0, 0}, {0, 0, 1}};
+    for (int k = 0; k < 3; ++k) {
+      const auto& d = sk.joints()[0].dofs[root_rot[k]];
+      if (glm::length(d.axis - axes[k]) > 1e-4f) return false;
+      if (d.min > -glm::pi<float>() + 1e-3f || d.max < glm::pi<float>() - 1e-3f) {
+        if (k != 1 || d.min > -glm::half_pi<float>() + 1e-3f || d.max < glm::half_pi<float>() - 1e-3f) return false;
+      }
+    }
+    return true;
+  }();
+
+  const std::optional<Floor> floor = find_floor(sk);
 
   Clip clip;
   clip.name = name;
@@ -516,29 +619,46 @@ Result<Clip> retarget(const BvhFile& bvh, const modeler::Skeleton& sk, const std
   for (const auto& frame : bvh.frames) {
     bvh_fk(&frame);
     modeler::Posture p = prev;
-    // Root: translation scaled, rotation fitted to the hips' world rotation.
-    glm::vec3 hp = bpos[hips];
-    glm::vec3 target_root(hp.x * scale, (hp.y - bvh_ground) * scale + our_ankle_y, hp.z * scale);
-    for (size_t k = 0; k < root.dofs.size(); ++k) {
-      const auto& d = root.dofs[k];
-      if (d.type == modeler::DofType::kTranslation)
-        p[root.first_dof + k] = std::clamp(glm::dot(target_root - root_rest, d.axis), d.min, d.max);
-    }
-    {
-      // Fit the root's rotation DOFs to two directions of the hips' frame.
-      glm::mat3 R = brot[hips];
-      std::vector<int> rot;
-      for (size_t k = 0; k < root.dofs.size(); ++k)
-        if (root.dofs[k].type == modeler::DofType::kRotation) rot.push_back(static_cast<int>(k));
+    // Root rotation: the hips' world rotation, taken apart in the order of our root's rotation DOFs.
+    // (Fitted by Gauss-Newton from the last frame it stayed at yaw 0 when the actor turned to face -Z:
+    // at the opposite direction the gradient vanishes. Then the hips' twist clamped, the knees could not
+    // bend in the captured plane, and the legs came out straight with the feet pointing down.)
+    const glm::mat3 R = brot[hips];
+    if (root_euler) {
+      const float yaw = std::atan2(R[2][0], R[2][2]);
+      const float pitch = std::asin(std::clamp(-R[2][1], -1.0f, 1.0f));
+      const float roll = std::atan2(R[0][1], R[1][1]);
+      p[root.first_dof + root_rot[0]] = yaw;
+      p[root.first_dof + root_rot[1]] = pitch;
+      p[root.first_dof + root_rot[2]] = roll;
+    } else {
+      // Another root: fit its rotation DOFs to two directions of the hips' frame.
       modeler::Joint rj;
-      for (int k : rot) rj.dofs.push_back(root.dofs[k]);
+      for (int k : root_rot) rj.dofs.push_back(root.dofs[k]);
       float v[6] = {};
-      for (size_t k = 0; k < rot.size(); ++k) v[k] = p[root.first_dof + rot[k]];
+      for (size_t k = 0; k < root_rot.size(); ++k) v[k] = p[root.first_dof + root_rot[k]];
       for (int pass = 0; pass < 2; ++pass) {
         fit_direction(rj, glm::vec3(0, 0, 1), R * glm::vec3(0, 0, 1), v);
         fit_direction(rj, glm::vec3(0, 1, 0), R * glm::vec3(0, 1, 0), v);
       }
-      for (size_t k = 0; k < rot.size(); ++k) p[root.first_dof + rot[k]] = v[k];
+      for (size_t k = 0; k < root_rot.size(); ++k) p[root.first_dof + root_rot[k]] = v[k];
+    }
+    // Root translation: our hip joints' midpoint goes where the BVH's is, scaled, over the ground. (The
+    // BVH root itself sits higher above its hip joints than ours, ~11 cm scaled in CMU's against 4 cm:
+    // placing the roots made standing clips float.)
+    {
+      std::vector<float> rv(root_rot.size());
+      for (size_t k = 0; k < root_rot.size(); ++k) rv[k] = p[root.first_dof + root_rot[k]];
+      modeler::Joint rj;
+      for (int k : root_rot) rj.dofs.push_back(root.dofs[k]);
+      const glm::vec3 hm = 0.5f * (bpos[at[kLThigh]] + bpos[at[kRThigh]]);
+      const glm::vec3 target_hips(hm.x * scale, (hm.y - bvh_ground) * scale + our_ankle_y, hm.z * scale);
+      const glm::vec3 target_root = target_hips - dof_rotation(rj, rv.data()) * our_hips_local;
+      for (size_t k = 0; k < root.dofs.size(); ++k) {
+        const auto& d = root.dofs[k];
+        if (d.type == modeler::DofType::kTranslation)
+          p[root.first_dof + k] = std::clamp(glm::dot(target_root - root_rest, d.axis), d.min, d.max);
+      }
     }
     // Every mapped joint, parents first: point our link along the BVH bone.
     for (const Mapped& m : links) {
@@ -569,6 +689,7 @@ Result<Clip> retarget(const BvhFile& bvh, const modeler::Skeleton& sk, const std
       for (size_t k = 0; k < j.dofs.size(); ++k) p[j.first_dof + k] = v[k];
     }
     sk.clamp(p);
+    if (floor) keep_above_floor(sk, *floor, p, w);
     clip.frames.push_back(p);
     prev = p;
   }

@@ -11,10 +11,12 @@
 // Daz-friendly release (hip/abdomen/chest/lThigh/lShin/lFoot/lCollar/lShldr/lForeArm/lHand), the
 // original ASF names (lfemur/ltibia/lfoot/lclavicle/lhumerus/lradius/lwrist), Mixamo
 // (mixamorig:LeftUpLeg ...) and thigh_l/calf_l/foot_l; a file without thighs, shins and feet on both
-// sides is refused. It takes the root's full rotation and translation (scaled by the ratio of leg
-// lengths) and, for every other mapped joint, turns our link to point the way the BVH bone points
-// (a least-squares fit of the joint's own DOFs, clamped to their limits; the twist about a bone is
-// not transferred). The clip keeps the BVH's frame count and frame rate.
+// sides is refused. It takes the root's full rotation (any facing) and places our hip joints where
+// the BVH's are (scaled by the ratio of leg lengths, over a ground at the clip's median lower-ankle
+// height) and, for every other mapped joint (toes included), turns our link to point the way the BVH
+// bone points (a least-squares fit of the joint's own DOFs, clamped to their limits; the twist about a
+// bone is not transferred). No foot point goes below the floor (y = 0): a toe tip there extends its
+// toe, then the body rises as far as needed. The clip keeps the BVH's frame count and frame rate.
 #pragma once
 
 #include <string>
