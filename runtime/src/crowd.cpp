@@ -406,7 +406,7 @@ BakedFrames baked_frames(const Model& m, const Character& ch, float time) {
   const float fx = clip_time(ch.phase + ch.speed * time, m.clip_duration(b.clip), true) * bc.rate;
   b.f0 = std::min(static_cast<int>(fx), bc.frame_count - 1);
   b.f1 = std::min(b.f0 + 1, bc.frame_count - 1);
-  b.blend = b.f1 > b.f0 ? fx - static_cast<float>(b.f0) : 0.0f;
+  b.blend = b.f1 > b.f0 && !bc.stepped ? fx - static_cast<float>(b.f0) : 0.0f;
   return b;
 }
 

@@ -125,6 +125,9 @@ void Model::bake(float rate) {
     const float dur = clip_duration(clip);
     BakedClip bc;
     bc.rate = rate;
+    bc.stepped = clip >= 0 && !clips[clip].channels.empty() &&
+                 std::all_of(clips[clip].channels.begin(), clips[clip].channels.end(),
+                             [](const Channel& c) { return c.interpolation == Interpolation::kStep; });
     bc.frame_count = dur > 0.0f ? static_cast<int>(std::ceil(dur * rate - 1e-3f)) + 1 : 1;
     bc.first_row = static_cast<std::uint32_t>(baked_palette_.size() / std::max<std::size_t>(1, np * 3));
     for (int f = 0; f < bc.frame_count; ++f) {

@@ -1346,6 +1346,27 @@ TEST(FramePlanner, AlignedSnapshotsRefreshWhenTheCameraTurnsInPlace) {
   EXPECT_EQ(planner.plan(crowd, rolled, 0.0f, RenderMode::kImpostor).stats.view_refreshes, 1);
 }
 
+// A clip whose channels are all STEP holds each pose until its next key: a time between two baked
+// frames takes the earlier one rather than a blend of both (the 60 Hz bake blended a step into the
+// next pose for 1/60 s, drawing the stretch half done at 0.499 s). A linear clip still blends.
+TEST(FramePlanner, SteppedClipsHoldTheirPosesBetweenBakedFrames) {
+  auto blend_at = [](Interpolation interpolation, float time) {
+    Model m = tiny_model();
+    m.clips[0].channels[0].interpolation = interpolation;
+    m.bake(60.0f);
+    Crowd crowd(m);
+    crowd.add(Character{});
+    FramePlanner planner(m, view_test_only(8.0f));
+    const FramePlan& p = planner.plan(crowd, facing_camera(30.0f), time, RenderMode::kGeometry);
+    for (const auto& lod : p.geometry)
+      if (!lod.empty()) return lod[0].anim.w;
+    return -1.0f;
+  };
+  EXPECT_EQ(blend_at(Interpolation::kStep, 0.495f), 0.0f);
+  EXPECT_EQ(tiny_model().baked_clips()[0].stepped, false);
+  EXPECT_NEAR(blend_at(Interpolation::kLinear, 0.495f), 0.7f, 1e-3f);  // 0.495 s is frame 29.7
+}
+
 // A snapshot cut at a scale (aligned here) and then seen larger, by a zoom that leaves its window's
 // size class alone, is taken anew once it is seen 1.5 times larger than cut (kMagnifiedRefresh):
 // until then its texels were drawn blurred, however long the scene stood still. A snapshot that

@@ -141,6 +141,10 @@ constexpr int kPosturePairs = 4;
 struct BakedClip {
   int frame_count = 0;      // >= 1; frame f is at time min(f / rate, duration)
   float rate = 60.0f;       // frames per second
+  // Every channel of the clip is STEP: a time between two frames takes the earlier frame instead of a
+  // blend of both (a held pose blended into the next for one frame, 1/60 s, otherwise). A STEP key
+  // between two frames is then shown from the next frame on, at most one frame late.
+  bool stepped = false;
   std::uint32_t first_row = 0;  // first row of this clip in Model::baked_palette()
   // kPosturePairs squared distances per frame (model space, m^2).
   std::vector<std::array<float, kPosturePairs>> posture;
