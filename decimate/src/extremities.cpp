@@ -1,6 +1,7 @@
 #include "bb/decimate/extremities.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <atomic>
 #include <cstdint>
@@ -15,7 +16,47 @@
 
 namespace bb::decimate {
 
+namespace {
+
+// The border of each extremity part (1..7) of `m`: its edges used by one of the part's triangles,
+// each as the bit patterns of its two end positions (smaller first), sorted.
+using PositionEdge = std::array<uint32_t, 6>;
+std::vector<std::vector<PositionEdge>> part_borders(const mesher::SkinnedMesh& m) {
+  std::vector<std::vector<PositionEdge>> all(8);
+  for (size_t t = 0; t < m.indices.size(); t += 3) {
+    const uint8_t p = m.extremity_part(t);
+    if (p == 0 || p >= 8) continue;
+    for (int k = 0; k < 3; ++k) {
+      std::array<uint32_t, 3> a, b;
+      std::memcpy(a.data(), &m.positions[m.indices[t + k]], 12);
+      std::memcpy(b.data(), &m.positions[m.indices[t + (k + 1) % 3]], 12);
+      if (b < a) std::swap(a, b);
+      all[p].push_back({a[0], a[1], a[2], b[0], b[1], b[2]});
+    }
+  }
+  for (auto& e : all) {
+    std::sort(e.begin(), e.end());
+    std::vector<PositionEdge> border;
+    for (size_t i = 0; i < e.size();) {
+      size_t j = i;
+      while (j < e.size() && e[j] == e[i]) ++j;
+      if ((j - i) % 2 == 1) border.push_back(e[i]);
+      i = j;
+    }
+    e = std::move(border);
+  }
+  return all;
+}
+
+}  // namespace
+
 mesher::SkinnedMesh with_extremities_of(const mesher::SkinnedMesh& level, const mesher::SkinnedMesh& from) {
+  // A part of `from` replaces `level`'s only where its border is `level`'s part's border: where
+  // the union cut into an extremity (a wide shoulder's cap through the neck, which sends a level
+  // to the full union) the cut part fits no other level's zipper, and `level` keeps its own.
+  const auto level_borders = part_borders(level), from_borders = part_borders(from);
+  std::array<bool, 8> take{};
+  for (int p = 1; p < 8; ++p) take[p] = level_borders[p] == from_borders[p];
   mesher::SkinnedMesh out;
   auto key = [](const glm::vec3& p) {
     uint32_t b[3];
@@ -32,12 +73,16 @@ mesher::SkinnedMesh with_extremities_of(const mesher::SkinnedMesh& level, const 
     index.emplace(key(p), n);
     return n;
   };
-  for (size_t t = 0; t < level.indices.size(); t += 3)
-    if (level.extremity_part(t) == 0)
+  for (size_t t = 0; t < level.indices.size(); t += 3) {
+    const uint8_t p = level.extremity_part(t);
+    if (p == 0 || p >= 8 || !take[p])
       for (int k = 0; k < 3; ++k) out.indices.push_back(add(level, level.indices[t + k]));
-  for (size_t t = 0; t < from.indices.size(); t += 3)
-    if (from.extremity_part(t) != 0)
+  }
+  for (size_t t = 0; t < from.indices.size(); t += 3) {
+    const uint8_t p = from.extremity_part(t);
+    if (p != 0 && p < 8 && take[p])
       for (int k = 0; k < 3; ++k) out.indices.push_back(add(from, from.indices[t + k]));
+  }
   return out;
 }
 
@@ -156,6 +201,13 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
   std::vector<PartMesh> restart_parts;
   if (restart && restart != reference) restart_parts = split_parts(*restart);
   const std::vector<PartMesh>& again = restart == reference ? ref : restart_parts;
+  // A restart part replaces this mesh's only where it meets the same zipper (see
+  // with_extremities_of: a part the union cut into fits only its own level).
+  std::array<bool, 8> restart_fits{};
+  if (restart) {
+    const auto mine = part_borders(mesh), theirs = restart == &mesh ? mine : part_borders(*restart);
+    for (int p = 1; p < 8; ++p) restart_fits[p] = mine[p] == theirs[p];
+  }
   const bool measure = opt.candidates.size() > 1 || report;
   struct Job {
     uint8_t part = 0;
@@ -177,7 +229,7 @@ Result<mesher::SkinnedMesh> decimate_extremities(const mesher::SkinnedMesh& mesh
   auto run = [&](Job& j) {
     const PartMesh& mine = own[j.part];
     const bool has_ref = reference && ref[j.part].sub.triangle_count() > 0;
-    const bool has_restart = restart && again[j.part].sub.triangle_count() > 0;
+    const bool has_restart = restart && restart_fits[j.part] && again[j.part].sub.triangle_count() > 0;
     const PartMesh& against = has_ref ? ref[j.part] : mine;
     std::unique_ptr<ReferenceDistance>& rd = cache->distance[j.part];  // one job per part
     if (measure && !rd) rd = std::make_unique<ReferenceDistance>(against.sub.positions, against.sub.indices);

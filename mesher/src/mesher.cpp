@@ -86,8 +86,8 @@ float wrap_angle(float a) {
   return a < 0 ? a + two_pi : a;
 }
 
-// Point and smoothed tangent at arc length s along a polyline.
-Frame frame_at(const std::vector<glm::vec3>& axis, float s) {
+// Point and smoothed tangent at arc length s along a polyline: the chord over `w` either side.
+Frame frame_at(const std::vector<glm::vec3>& axis, float s, float w = 0.06f) {
   auto point = [&](float x) {
     x = std::max(0.0f, x);
     for (size_t i = 0; i + 1 < axis.size(); ++i) {
@@ -101,7 +101,6 @@ Frame frame_at(const std::vector<glm::vec3>& axis, float s) {
   for (size_t i = 0; i + 1 < axis.size(); ++i) total += glm::distance(axis[i], axis[i + 1]);
   Frame f;
   f.c = point(s);
-  const float w = 0.06f;
   glm::vec3 a = point(std::max(0.0f, s - w)), b = point(std::min(total, s + w));
   f.t = glm::normalize(b - a);
   return f;
@@ -114,10 +113,15 @@ float axis_length(const std::vector<glm::vec3>& axis) {
 }
 
 // Ring frames along the axis at arc lengths `at` (increasing), parallel-transported u.
-std::vector<Frame> ring_frames(const std::vector<glm::vec3>& axis, const std::vector<float>& at) {
+std::vector<Frame> ring_frames(const std::vector<glm::vec3>& axis, const std::vector<float>& at,
+                               float tangent_window = 0.06f) {
   std::vector<Frame> out;
+  const float total = axis_length(axis), base = 0.06f;
   for (float s : at) {
-    Frame f = frame_at(axis, s);
+    // A wider window narrows back to the base one towards the seam end: the last ring is zipped
+    // to the extremity's seam loop, whose plane is set by the base window.
+    const float w = tangent_window > base ? std::min(tangent_window, std::max(base, total - s)) : tangent_window;
+    Frame f = frame_at(axis, s, w);
     glm::vec3 u;
     if (out.empty()) {
       // Start with the body's forward (+Z) or, for a forward axis, up (+Y).
@@ -363,7 +367,7 @@ struct Attachment {
 };
 
 PieceMesh build_piece(const PieceSpec& spec, const PartDensity& density, int cup_rings, int cup_points, bool vdb,
-                      float ring_gap, bool deep_cap, Attachment* att = nullptr) {
+                      float ring_gap, bool deep_cap, Attachment* att = nullptr, float tangent_window = 0.06f) {
   PieceMesh mesh;
   const SubField& field = *spec.field;
   const int rings = std::max(2, density.contours * spec.links + 1);
@@ -381,7 +385,7 @@ PieceMesh build_piece(const PieceSpec& spec, const PartDensity& density, int cup
   // nearly coincident triangles at the body's midplane, which the union cannot round safely.
   const bool extend = spec.region != kLegL && spec.region != kLegR;
   std::vector<float> at = even_rings(axis, rings);
-  std::vector<Frame> frames = ring_frames(axis, at);
+  std::vector<Frame> frames = ring_frames(axis, at, tangent_window);
   const int ring_count = int(frames.size());
   Ring first = cast_ring(field, frames[0], density.points, mesh, uint8_t(MeshPart::kBody), 0, spec.region, nullptr,
                          extend, land);
@@ -1074,6 +1078,7 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
     t0 = Clock::now();
     std::vector<PieceMesh> pieces;
     std::vector<Attachment> attachments(d.vdb_extremities ? m.pieces.size() : 0);
+    std::vector<float> windows(m.pieces.size(), 0.06f);
     for (size_t i = 0; i < m.pieces.size(); ++i) {
       const PieceSpec& spec = m.pieces[i];
       const PartDensity& pd = i == 0 ? d.torso : (i < 3 ? d.arm : d.leg);
@@ -1081,8 +1086,30 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
       int cup_points = i == 0 ? d.head_points : (i < 3 ? d.hand_points : d.foot_points);
       float spacing = axis_length(spec.axis) / float(pd.contours * spec.links);
       float gap = std::max(0.003f * m.height / 1.75f, 0.35f * spacing);
-      pieces.push_back(build_piece(spec, pd, cup, cup_points, d.vdb_extremities, gap, d.crease_tolerance > 0,
-                                   d.vdb_extremities ? &attachments[i] : nullptr));
+      // Rings are cast in planes across the axis, their tangents smoothed over `windows[i]` either
+      // side: where the axis bends (the spine's lumbar curve) neighbouring planes meet at about
+      // window / bend angle from the axis, and a belly reaching farther out than that folds the
+      // piece (rings crossing). A piece that intersects itself is cast again with the tangent
+      // smoothed over a wider stretch; the fewest intersections win.
+      PieceMesh best;
+      size_t best_crossings = SIZE_MAX;
+      for (float w : {0.06f, 0.12f, 0.2f, 0.3f}) {
+        Attachment att;
+        PieceMesh p = build_piece(spec, pd, cup, cup_points, d.vdb_extremities, gap, d.crease_tolerance > 0,
+                                  d.vdb_extremities ? &att : nullptr, w);
+        const size_t crossings = check_mesh(p.positions, p.indices, true).self_intersections;
+        if (crossings < best_crossings) {
+          best = std::move(p);
+          best_crossings = crossings;
+          windows[i] = w;
+          if (d.vdb_extremities) attachments[i] = std::move(att);
+        }
+        if (crossings == 0) break;
+      }
+      if (std::getenv("BB_MESHER_DEBUG") && windows[i] != 0.06f)
+        std::fprintf(stderr, "lod %zu piece %zu: tangent window %.2f m, %zu crossings\n", level, i, windows[i],
+                     best_crossings);
+      pieces.push_back(std::move(best));
     }
     g_times.contours += since(t0);
 
@@ -1094,15 +1121,23 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
         MeshCheck c = check_mesh(pieces[i].positions, pieces[i].indices, true);
         std::fprintf(stderr, "lod %zu piece %zu: closed %d manifold %d oriented %d self-x %zu\n", level, i, c.closed,
                      c.manifold, c.oriented, c.self_intersections);
-        for (size_t k = 0; k < std::min<size_t>(c.intersecting.size(), 4); ++k) {
-          glm::vec3 a = pieces[i].positions[pieces[i].indices[3 * c.intersecting[k].first]];
-          std::fprintf(stderr, "   at (%.3f %.3f %.3f)\n", a.x, a.y, a.z);
+        for (size_t k = 0; k < std::min<size_t>(c.intersecting.size(), 8); ++k) {
+          for (size_t tt : {c.intersecting[k].first, c.intersecting[k].second}) {
+            std::fprintf(stderr, "   tri %zu:", tt);
+            for (int q = 0; q < 3; ++q) {
+              uint32_t vi = pieces[i].indices[3 * tt + q];
+              glm::vec3 a = pieces[i].positions[vi];
+              std::fprintf(stderr, " v%u(%.3f %.3f %.3f)", vi, a.x, a.y, a.z);
+            }
+            std::fprintf(stderr, "\n");
+          }
         }
       }
     auto joined = detail::mesh_union(plain);
     if (!joined) return Error{"", body.name + ": lods[" + std::to_string(level) + "]", joined.error().message()};
     if (!attachments.empty() && !reattach(*joined, attachments)) {
       // The union touched a stand-in fan: unite the pieces with their extremities (slower).
+      if (std::getenv("BB_MESHER_DEBUG")) std::fprintf(stderr, "lod %zu: reattach failed, full union\n", level);
       std::vector<PlainMesh> full;
       for (size_t i = 0; i < m.pieces.size(); ++i) {
         const PieceSpec& spec = m.pieces[i];
@@ -1110,7 +1145,7 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
         int cup = i == 0 ? d.head_rings : (i < 3 ? d.hand_rings : d.foot_rings);
         float spacing = axis_length(spec.axis) / float(pd.contours * spec.links);
         float gap = std::max(0.003f * m.height / 1.75f, 0.35f * spacing);
-        PieceMesh p = build_piece(spec, pd, cup, 0, true, gap, d.crease_tolerance > 0);
+        PieceMesh p = build_piece(spec, pd, cup, 0, true, gap, d.crease_tolerance > 0, nullptr, windows[i]);
         full.push_back({p.positions, p.indices});
         pieces[i] = std::move(p);
       }
@@ -1120,6 +1155,15 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
     }
     for (const Attachment& a : attachments) pieces.push_back(a.ext);  // for the attribute lookup
     drop_small_components(*joined);
+    if (std::getenv("BB_MESHER_DEBUG")) {
+      MeshCheck c = check_mesh(joined->positions, joined->indices, true);
+      std::fprintf(stderr, "lod %zu union: closed %d manifold %d self-x %zu\n", level, c.closed, c.manifold,
+                   c.self_intersections);
+      for (size_t k = 0; k < std::min<size_t>(c.intersecting.size(), 3); ++k) {
+        glm::vec3 a = joined->positions[joined->indices[3 * c.intersecting[k].first]];
+        std::fprintf(stderr, "   at (%.3f %.3f %.3f)\n", a.x, a.y, a.z);
+      }
+    }
     g_times.joining += since(t0);
     if (d.crease_tolerance > 0) {
       t0 = Clock::now();

@@ -240,3 +240,37 @@ TEST(Extremities, SeededVariantsKeepNoSelfIntersectingCandidate) {
     }
   }
 }
+
+// Every metaball radius x 1.35 (an "obese" edit of the body file): the wide left shoulder's start
+// cap reaches into the neck, the union cuts into the head at level 0 (and at level 1 of 4), and
+// the middle levels took that cut head, which fits only its own level's zipper: level 1 was left
+// with 11 border edges at the neck (levels 1 and 2 with 4 levels) and a head decimated into a
+// cone. A level now keeps its own extremity where the previous level's has another border.
+TEST(Extremities, WideNeckMiddleLevelsStayClosed) {
+  modeler::Body body = modeler::default_body();
+  body.name = "obese";
+  for (auto& p : body.primitives)
+    if (p.type == modeler::PrimitiveType::kMetaball) p.radii *= 1.35f;
+  for (int levels : {3, 4}) {
+    exporter::BuildOptions o;
+    o.lods = levels;
+    o.measure_errors = false;
+    o.proxies = false;
+    o.walk_speeds = {};
+    auto b = exporter::build_body(body, o);
+    ASSERT_TRUE(b) << b.error().message();
+    ASSERT_EQ(b->input.lods.size(), static_cast<size_t>(levels));
+    for (size_t l = 0; l < b->input.lods.size(); ++l) {
+      const auto& r = b->input.lods[l].report;
+      EXPECT_TRUE(r.closed) << levels << " levels, level " << l;
+      EXPECT_TRUE(r.manifold) << levels << " levels, level " << l;
+      EXPECT_EQ(r.self_intersection_count, 0u) << levels << " levels, level " << l;
+      // The head is still a head: as many triangles as the level's other extremities allow, not
+      // a cone of a few dozen.
+      const auto& m = b->input.lods[l].mesh;
+      size_t head = 0;
+      for (size_t t = 0; t < m.indices.size(); t += 3) head += m.extremity_part(t) == 1;
+      if (l + 1 < b->input.lods.size()) EXPECT_GT(head, 300u) << levels << " levels, level " << l;
+    }
+  }
+}
