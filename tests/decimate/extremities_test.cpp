@@ -244,7 +244,7 @@ TEST(Extremities, SeededVariantsKeepNoSelfIntersectingCandidate) {
   const std::vector<std::pair<uint64_t, int>> cases = {{3, 3}, {6, 3}, {8, 3}, {20, 3}, {23, 3},
                                                        {14, 4}, {17, 4}, {19, 4}};
   for (const auto& [seed, levels] : cases)
-    build_clean(modeler::make_variant(modeler::default_body(), {.seed = seed}, "_v" + std::to_string(seed)), levels,
+    (void)build_clean(modeler::make_variant(modeler::default_body(), {.seed = seed}, "_v" + std::to_string(seed)), levels,
                 "seed " + std::to_string(seed) + ", " + std::to_string(levels) + " levels");
 }
 
@@ -267,7 +267,9 @@ TEST(Extremities, WideNeckMiddleLevelsStayClosed) {
       const auto& m = b->input.lods[l].mesh;
       size_t head = 0;
       for (size_t t = 0; t < m.indices.size(); t += 3) head += m.extremity_part(t) == 1;
-      if (l + 1 < b->input.lods.size()) EXPECT_GT(head, 300u) << levels << " levels, level " << l;
+      if (l + 1 < b->input.lods.size()) {
+        EXPECT_GT(head, 300u) << levels << " levels, level " << l;
+      }
     }
   }
 }
