@@ -56,10 +56,11 @@ TEST(MeshUnion, NumberedTheSameWhateverTheInputOrder) {
   for (size_t t = 0; t < u.indices.size(); t += 3) {
     EXPECT_LT(u.indices[t], u.indices[t + 1]);
     EXPECT_LT(u.indices[t], u.indices[t + 2]);
-    if (t >= 3)
+    if (t >= 3) {
       EXPECT_TRUE(std::lexicographical_compare(u.indices.begin() + long(t) - 3, u.indices.begin() + long(t),
                                                u.indices.begin() + long(t), u.indices.begin() + long(t) + 3))
           << t / 3;
+    }
   }
   for (unsigned seed : {1u, 2u, 3u}) {
     auto again = detail::mesh_union({shuffled(a, seed), shuffled(b, seed + 10)});
