@@ -1042,8 +1042,17 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
     });
     for (size_t i = 1; i < m.pieces.size(); i += 2) st[i] = build_vdb_extremity(*m.surface, m.pieces[i], 1.0f);
     worker.join();
+    // The error names the extremity and where its seam is: a body without the primitives that carry
+    // the skin across a seam (a neck, a wrist, an ankle) has no skin there for the plane to cut.
+    static constexpr const char* kExtremity[] = {"body", "head", "left hand", "right hand", "left foot", "right foot"};
+    static constexpr const char* kSeam[] = {"", "neck", "left wrist", "right wrist", "left ankle", "right ankle"};
     for (size_t i = 0; i < st.size(); ++i)
-      if (!st[i]) return Error{"", body.name + ": extremity " + std::to_string(i), st[i].error().reason};
+      if (!st[i]) {
+        const auto part = std::min<std::size_t>(static_cast<std::size_t>(m.pieces[i].ext_part), 5);
+        return Error{"", body.name + ": " + kExtremity[part],
+                     st[i].error().reason + " (its seam at the " + kSeam[part] +
+                         ": does the body still have the primitives that carry the skin across it?)"};
+      }
     g_times.extremities = since(t0);
   }
 

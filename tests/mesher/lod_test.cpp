@@ -257,5 +257,22 @@ TEST(BuildLods, HugeBellyDoesNotFoldTheTorso) {
   }
 }
 
+// A body whose neck primitive was deleted has no skin where the head's seam plane cuts: the error
+// names the body, the extremity and its seam (it said "extremity 0" and nothing of the neck).
+TEST(BuildLods, AMissingNeckIsNamed) {
+  modeler::Body body = modeler::default_body();
+  body.name = "no_neck";
+  const auto before = body.primitives.size();
+  std::erase_if(body.primitives, [](const auto& p) { return p.name == "neck"; });
+  ASSERT_EQ(body.primitives.size() + 1, before);
+  MesherOptions o;
+  o.error_samples = 0;
+  o.check_topology = false;
+  auto lods = build_lods(body, o);
+  ASSERT_FALSE(lods.ok());
+  EXPECT_EQ(lods.error().where, "no_neck: head");
+  EXPECT_NE(lods.error().reason.find("its seam at the neck"), std::string::npos) << lods.error().message();
+}
+
 }  // namespace
 }  // namespace bb::mesher
