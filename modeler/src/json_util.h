@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <iterator>
+#include <limits>
 #include <set>
 #include <filesystem>
 #include <fstream>
@@ -56,6 +57,13 @@ inline double number(const json& j, const std::string& path) {
   if (!j.is_number()) fail(path, std::string("expected a number, got ") + type_name(j));
   double v = j.get<double>();
   if (!std::isfinite(v)) fail(path, "expected a finite number");
+  // Body and skeleton values are kept as floats: past their range a value became "inf" in the
+  // range checks' messages (a radius of 1e300 was "got inf").
+  if (std::abs(v) > static_cast<double>(std::numeric_limits<float>::max())) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%g", v);
+    fail(path, std::string("expected a number a float holds, within +-3.4e38 (got ") + text + ")");
+  }
   return v;
 }
 

@@ -102,6 +102,10 @@ INSTANTIATE_TEST_SUITE_P(
         BadBody{R"({"name": "x", "primitives": [{"type": "ellipsoid", "joint": "l_elbow", "center": [0,0,0],
                  "radii": [0.1,0.1,0.1], "rotation_deg": [0,1e30,0]}]})",
                 "$.primitives[0].rotation_deg[1]", "[-360, 360] degrees"},
+        // Past a float's range: named with its value (it was "got inf").
+        BadBody{R"({"name": "x", "primitives": [{"type": "ellipsoid", "joint": "l_elbow", "center": [0,0,0],
+                 "radii": [0.1,1e300,0.1]}]})",
+                "$.primitives[0].radii[1]", "expected a number a float holds, within +-3.4e38 (got 1e+300)"},
         BadBody{R"({"name": "x", "sample_posture": "dance", "primitives": [{"type": "metaball",
                  "joint": "l_elbow", "center": [0,0,0], "radii": [1,1,1]}]})",
                 "$.sample_posture", "unknown posture"},
