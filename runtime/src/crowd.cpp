@@ -685,9 +685,9 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
         // large), shows its texels blurred: refreshed past kMagnifiedRefresh. (The audit's probe: a
         // 1.9x zoom kept 34.1 dB where a fresh snapshot gives 38.8.)
         if (!refresh && (cs.aligned || config_.texel_per_pixel)) {
-          const float depth = glm::dot(ta - camera.eye, fwd);
-          const float tpp = window_texels_per_pixel(cs.window.size, cs.half_size * ch.scale / cs.scale, depth, ppm1);
-          if (depth > 0.0f && tpp * kMagnifiedRefresh < config_.texels_per_pixel) {
+          const float ta_depth = glm::dot(ta - camera.eye, fwd);
+          const float tpp = window_texels_per_pixel(cs.window.size, cs.half_size * ch.scale / cs.scale, ta_depth, ppm1);
+          if (ta_depth > 0.0f && tpp * kMagnifiedRefresh < config_.texels_per_pixel) {
             refresh = true;
             ++st.window_refreshes;
             if (budget) staleness = std::max(staleness, config_.texels_per_pixel / (tpp * kMagnifiedRefresh));
@@ -931,6 +931,12 @@ std::size_t FramePlanner::begin_frame(const Crowd& crowd, const SceneCamera& cam
   const std::size_t n = crowd.size();
   Frame& fr = frame_;
   fr.crowd = &crowd;
+  // The last plan was drawn by a renderer that holds none of this cache's snapshots (a renderer
+  // made anew without invalidate()): its impostors were drawn from empty windows; all are taken anew.
+  if (plan_.drawn_from_another_atlas) {
+    plan_.drawn_from_another_atlas = false;
+    invalidate();
+  }
   // Part cards on or off: start over with the other kind of windows.
   const int want_parts = config_.part_cards ? static_cast<int>(m.body_parts().size()) : 1;
   if (want_parts != parts_) {

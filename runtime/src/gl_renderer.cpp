@@ -1673,10 +1673,10 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
   d.stamp(ts, 0);
   // 1. Snapshots due (section 4: shared pages, few passes), then their coverage rectangles.
   if (options.take_snapshots) {
-    // The plan's quads show snapshots of its planner's cache: this renderer must have taken them.
-    assert((plan.billboards.empty() || holds_snapshots_for(plan)) &&
-           "the plan draws snapshots another renderer took (a renderer made anew, or two renderers drawing one "
-           "planner's plans): call FramePlanner::invalidate() before the new renderer's first plan");
+    // The plan's quads show snapshots of its planner's cache: where this renderer did not take them
+    // (a renderer made anew without FramePlanner::invalidate()), its windows are empty this frame, and
+    // the planner is told to take them all anew at its next frame.
+    if (!plan.billboards.empty() && !holds_snapshots_for(plan)) plan.drawn_from_another_atlas = true;
     if (std::any_of(plan.snapshots.begin(), plan.snapshots.end(), [](const auto& s) { return !s.empty(); }))
       d.cache_id = plan.cache_id;
     d.take_snapshots(plan, ts);

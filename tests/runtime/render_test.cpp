@@ -556,7 +556,7 @@ TEST(CrowdRender, SnapshotsIgnoreTheGamesScissorAndPolygonOffset) {
 // plans would draw empty windows (invisible characters) until their cache tests fire. The plan
 // names its cache, and the renderer tells whether it holds its snapshots; FramePlanner::invalidate
 // starts a new cache that any renderer can draw.
-TEST(CrowdRender, ANewRendererNeedsThePlannerInvalidated) {
+TEST(CrowdRender, ANewRendererTakesThePlannersSnapshotsAnew) {
   REQUIRE_GL();
   LOAD_CESIUM_MAN(m);
   const Crowd crowd = three_walkers(*m);
@@ -604,6 +604,21 @@ TEST(CrowdRender, ANewRendererNeedsThePlannerInvalidated) {
   EXPECT_NE(q0.cache_id, p3.cache_id);
   EXPECT_TRUE((*second)->holds_snapshots_for(q0));
   EXPECT_FALSE((*second)->holds_snapshots_for(other.plan(crowd, cam, 1.0f, RenderMode::kImpostor)));
+  // Without invalidate(): the new renderer draws one frame of empty windows and marks the plan, and
+  // the planner takes every snapshot anew at its next frame (it drew them empty until their cache
+  // tests fired, for good in a still scene).
+  auto third = Renderer::create(*m);
+  ASSERT_TRUE(third.ok());
+  const FramePlan& p4 = planner.plan(crowd, cam, 1.0f, RenderMode::kImpostor);
+  EXPECT_EQ(p4.stats.snapshots, 0);
+  (void)draw(**third, p4);
+  EXPECT_TRUE(p4.drawn_from_another_atlas);
+  const FramePlan& p5 = planner.plan(crowd, cam, 1.0f, RenderMode::kImpostor);
+  EXPECT_EQ(p5.stats.snapshots, 3);
+  EXPECT_FALSE(p5.drawn_from_another_atlas);
+  EXPECT_TRUE((*third)->holds_snapshots_for(p5));
+  EXPECT_GT(covered_psnr(a, draw(**third, p5), &covered), 60.0);
+  EXPECT_GT(covered, 2000);
 }
 
 // Twenty walkers on a circle seen from above the ring: the crowd path (planner + renderer) with

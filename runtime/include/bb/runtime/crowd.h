@@ -453,6 +453,11 @@ struct FramePlan {
   // plan needs no earlier snapshot, any renderer of the model and config can draw it).
   std::uint64_t cache_id = 0;
   std::uint32_t cache_plans_before = 0;
+  // Set by Renderer::draw when it does not hold those snapshots (a renderer made anew, or another
+  // one): the quads showed empty windows, and the planner that made this plan takes every snapshot
+  // anew at its next frame (one frame without those impostors; invalidate() before the new
+  // renderer's first plan avoids it). Only the planner's own plan (plan_of_last_frame) carries it back.
+  mutable bool drawn_from_another_atlas = false;
 };
 
 class WorkerPool;
@@ -500,9 +505,10 @@ class FramePlanner {
   // (FramePlan::cache_id). The snapshots a planner keeps (its cache) are pictures in the atlas of
   // the renderer that drew its plans: a plan draws windows whose snapshots earlier plans took. A
   // renderer made anew (after a context loss, a change of settings), or another renderer than the
-  // one that drew the earlier plans, holds none of them, and the characters would be drawn from
-  // empty windows (invisible) until their cache tests fire: call invalidate() before its first
-  // plan (Renderer::draw asserts it; Renderer::holds_snapshots_for tells). One renderer's atlas
+  // one that drew the earlier plans, holds none of them: call invalidate() before its first plan
+  // (Renderer::holds_snapshots_for tells). Without it the renderer draws that plan's impostors from
+  // empty windows (invisible for a frame) and marks the plan (FramePlan::drawn_from_another_atlas),
+  // and this planner invalidates itself at its next frame. One renderer's atlas
   // holds one planner's snapshots: two views of one crowd need a planner (and renderer) each.
   void invalidate();
   // The config, to change between frames. The cache tests, the refresh policies, the kAuto switch,

@@ -113,7 +113,8 @@ class Renderer {
   // shared_atlas_config(config, k, n), let draw_many draw all their blended quads in one draw.
   // The atlas's pictures are those of the plans this renderer drew: a planner whose plans another
   // renderer drew needs FramePlanner::invalidate() before this one draws its plans
-  // (holds_snapshots_for).
+  // (holds_snapshots_for; without it, one frame of that planner's impostors is drawn from empty
+  // windows and the planner then takes them all anew: FramePlan::drawn_from_another_atlas).
   static Result<std::unique_ptr<Renderer>> create(const Model& model, const ImpostorConfig& config = {},
                                                   const Renderer* share_atlas = nullptr);
   ~Renderer();
@@ -123,7 +124,8 @@ class Renderer {
   // Draws one frame into the currently bound draw framebuffer, with the plan's camera viewport
   // (0, 0, width, height). Does not clear it. Snapshots first (they change the atlas), then
   // geometry, then impostors. `plan` must come from a FramePlanner of the same model and config,
-  // whose earlier plans this renderer drew (holds_snapshots_for: asserted).
+  // whose earlier plans this renderer drew (holds_snapshots_for; where not, the plan is marked and
+  // its planner starts over at its next frame).
   // GL state left changed: program 0, VAO 0, the textures bound to units 0-6 (no sampler objects
   // left bound), viewport, depth test on (LESS, writes on), blending, alpha to coverage and face
   // culling off (multisampling as found).
