@@ -399,6 +399,23 @@ struct BakedFrames {
   int clip = 0, f0 = 0, f1 = 0;
   float blend = 0.0f;  // f0 -> f1
 };
+// The screen's right and up axes in the frame of the line of sight from `eye` to `ta` (section 4.2's
+// Ho, Uo, Vo, with the world's up; Z looking straight down): what an aligned snapshot was cut along,
+// as its view test compares them (a camera turned or rolled in place turns them, and no line of
+// sight in the character's frame).
+struct ScreenAxes {
+  glm::vec3 right, up;
+};
+ScreenAxes screen_axes_in_sight(const glm::vec3& ta, const glm::vec3& eye, const glm::vec3& right, const glm::vec3& up) {
+  const glm::vec3 vo = ta - eye;
+  glm::vec3 ho = glm::cross(vo, glm::vec3(0.0f, 1.0f, 0.0f));
+  if (glm::dot(ho, ho) < 1e-12f * glm::dot(vo, vo)) ho = glm::cross(vo, glm::vec3(0.0f, 0.0f, 1.0f));
+  if (!(glm::dot(ho, ho) > 0.0f)) return {right, up};
+  const glm::vec3 v = glm::normalize(vo), h = glm::normalize(ho), u = glm::cross(h, v);
+  return {glm::vec3(glm::dot(right, h), glm::dot(right, u), glm::dot(right, v)),
+          glm::vec3(glm::dot(up, h), glm::dot(up, u), glm::dot(up, v))};
+}
+
 BakedFrames baked_frames(const Model& m, const Character& ch, float time) {
   BakedFrames b;
   b.clip = m.clips.empty() ? 0 : std::clamp(ch.clip, 0, static_cast<int>(m.clips.size()) - 1);
@@ -534,19 +551,6 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
   const glm::vec2 travel = bc.root_offset[f0] + (bc.root_offset[f1] - bc.root_offset[f0]) * blend;
   const glm::vec3 ta_local = (m.ta + glm::vec3(travel.x, 0.0f, travel.y)) * ch.scale;
   const glm::vec3 ta = ch.position + glm::vec3(cy * ta_local.x + sy * ta_local.z, ta_local.y, -sy * ta_local.x + cy * ta_local.z);
-  // The screen's axes in the frame of the line of sight to Ta (aligned snapshots' test of a camera
-  // turned or rolled in place): Vo to Ta, Ho = Vo x world up (x Z looking straight down), Uo = Ho x Vo.
-  glm::vec3 screen_right = cam_right, screen_up = cam_up;
-  if (config_.aligned_snapshots) {
-    const glm::vec3 vo = ta - camera.eye;
-    glm::vec3 ho = glm::cross(vo, glm::vec3(0.0f, 1.0f, 0.0f));
-    if (glm::dot(ho, ho) < 1e-12f * glm::dot(vo, vo)) ho = glm::cross(vo, glm::vec3(0.0f, 0.0f, 1.0f));
-    if (glm::dot(ho, ho) > 0.0f) {
-      const glm::vec3 v = glm::normalize(vo), h = glm::normalize(ho), u = glm::cross(h, v);
-      screen_right = glm::vec3(glm::dot(cam_right, h), glm::dot(cam_right, u), glm::dot(cam_right, v));
-      screen_up = glm::vec3(glm::dot(cam_up, h), glm::dot(cam_up, u), glm::dot(cam_up, v));
-    }
-  }
   bool outside = false;
   for (const auto& p : planes) outside |= glm::dot(glm::vec3(p), ta) + p.w < -radius;
   // A character placed nowhere (a position, yaw or scale not finite) is tested against no plane
@@ -664,11 +668,13 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
           // refreshes.
           // The cosine of the turn between the two frames: (trace - 1) / 2 of the rotation.
           float ca = 1.0f;
-          if (cs.aligned)
-            ca = 0.5f * (glm::dot(cs.screen_right, screen_right) + glm::dot(cs.screen_up, screen_up) +
-                         glm::dot(glm::cross(cs.screen_right, cs.screen_up), glm::cross(screen_right, screen_up)) - 1.0f);
-          const bool turned =
-              cs.aligned && (ca < cthr || (thr <= 0.0f && (cs.screen_right != screen_right || cs.screen_up != screen_up)));
+          bool turned = false;
+          if (cs.aligned) {
+            const ScreenAxes a = screen_axes_in_sight(ta, camera.eye, cam_right, cam_up);
+            ca = 0.5f * (glm::dot(cs.screen_right, a.right) + glm::dot(cs.screen_up, a.up) +
+                         glm::dot(glm::cross(cs.screen_right, cs.screen_up), glm::cross(a.right, a.up)) - 1.0f);
+            turned = ca < cthr || (thr <= 0.0f && (cs.screen_right != a.right || cs.screen_up != a.up));
+          }
           if (c < cthr || (thr <= 0.0f && cs.view != view) || turned) {
             refresh = true;
             ++st.view_refreshes;
@@ -715,8 +721,9 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
         // slower: flow test bed, --msaa 1, posture 0.1, 40 frames, impostor frame 5.06-5.10 ms
         // without, 5.98 ms with, 5.25-5.28 ms with every refresh a snapshot.
         cs.view = view;
-        cs.screen_right = screen_right;
-        cs.screen_up = screen_up;
+        const ScreenAxes a = screen_axes_in_sight(ta, camera.eye, cam_right, cam_up);
+        cs.screen_right = a.right;
+        cs.screen_up = a.up;
         cs.led = false;
         cs.posture = posture;
         cs.taken = fs.frame;
@@ -786,8 +793,10 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
         next.picture_behind = false;
         next.taken = fs.frame;
         next.offset = glm::vec2(glm::dot(sc.ta - ta, shot_right), glm::dot(sc.ta - ta, shot_up));
-        next.screen_right = screen_right;  // a lead turns the eye and the axes alike about Ta: the same
-        next.screen_up = screen_up;
+        // (A lead turns the eye and the axes alike about Ta: the same axes.)
+        const ScreenAxes a = screen_axes_in_sight(ta, camera.eye, cam_right, cam_up);
+        next.screen_right = a.right;
+        next.screen_up = a.up;
         next.rect = glm::vec4(-1, -1, 1, 1);
         glm::vec4 snap_rect = next.rect;
         if (config_.tight_quads) {
