@@ -332,6 +332,14 @@ ImpostorConfig view_test_only(float degrees) {
   return cfg;
 }
 
+// The same with snapshots cut out of the screen's image at one texel a pixel (aligned snapshots).
+ImpostorConfig aligned_view_test_only(float degrees) {
+  ImpostorConfig cfg = view_test_only(degrees);
+  cfg.aligned_snapshots = true;
+  cfg.texels_per_pixel = 1.0f;
+  return cfg;
+}
+
 // Part cards with the cache's view test alone, at `degrees`.
 ImpostorConfig part_cards_view_only(float degrees) {
   ImpostorConfig cfg = view_test_only(degrees);
@@ -1314,10 +1322,7 @@ TEST(FramePlanner, AlignedSnapshotsRefreshWhenTheCameraTurnsInPlace) {
   Model m = tiny_model();
   Crowd crowd(m);
   crowd.add(Character{});
-  ImpostorConfig cfg = view_test_only(8.0f);
-  cfg.aligned_snapshots = true;
-  cfg.texels_per_pixel = 1.0f;
-  FramePlanner planner(m, cfg);
+  FramePlanner planner(m, aligned_view_test_only(8.0f));
   FramePlanner free_grid(m, view_test_only(8.0f));  // snapshots facing the eye: exact whatever the turn
   auto turned = [](float degrees) {
     SceneCamera cam = facing_camera(30.0f);
@@ -1375,10 +1380,7 @@ TEST(FramePlanner, MagnifiedSnapshotsAreTakenAnew) {
   Model m = tiny_model();
   Crowd crowd(m);
   crowd.add(Character{});
-  ImpostorConfig cfg = view_test_only(8.0f);
-  cfg.aligned_snapshots = true;
-  cfg.texels_per_pixel = 1.0f;
-  FramePlanner planner(m, cfg);
+  FramePlanner planner(m, aligned_view_test_only(8.0f));
   FramePlanner filling(m, view_test_only(8.0f));
   auto zoomed = [](float zoom) {
     SceneCamera cam = facing_camera(30.0f);
