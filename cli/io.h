@@ -44,6 +44,15 @@ inline bool valid_utf8(std::string_view s) {
   return true;
 }
 
+// An error (named `path`) where `target` exists and is not a regular file: a folder, a device or a
+// pipe, which a rename onto it would replace.
+inline Status refuse_non_file(const std::string& path, const std::filesystem::path& target) {
+  std::error_code ec;
+  const std::filesystem::file_status st = std::filesystem::status(target, ec);
+  if (!std::filesystem::exists(st) || std::filesystem::is_regular_file(st)) return Ok{};
+  return Error{path, "", std::filesystem::is_directory(st) ? "cannot write: it is a folder" : "cannot write: it exists and is not a regular file"};
+}
+
 // Writes `bytes` to `path` through a temporary file beside it, renamed into place. The target
 // must be a regular file or not exist: a folder, a device or a pipe is refused (a rename would
 // replace it); a symbolic link is followed, so the file it names is what is replaced.
@@ -56,9 +65,7 @@ inline Status write_atomic(const std::string& path, std::string_view bytes) {
     fs::path to = fs::read_symlink(target, ec);
     if (!ec) target = to.is_absolute() ? to : target.parent_path() / to;
   }
-  const fs::file_status st = fs::status(target, ec);
-  if (fs::exists(st) && !fs::is_regular_file(st))
-    return Error{path, "", fs::is_directory(st) ? "cannot write: it is a folder" : "cannot write: it exists and is not a regular file"};
+  if (auto st = refuse_non_file(path, target); !st) return st;
   ec.clear();
   if (target.has_parent_path()) fs::create_directories(target.parent_path(), ec);
   if (ec) return Error{path, "", "cannot create directory: " + ec.message()};
@@ -107,10 +114,7 @@ inline Status check_output_dir(const std::string& dir) {
 inline Status check_output_file(const std::string& path) {
   namespace fs = std::filesystem;
   if (path.empty()) return Error{"(empty file name)", "", "cannot write: no file name given"};
-  std::error_code ec;
-  const fs::file_status st = fs::status(path, ec);
-  if (fs::exists(st) && !fs::is_regular_file(st))
-    return Error{path, "", fs::is_directory(st) ? "cannot write: it is a folder" : "cannot write: it exists and is not a regular file"};
+  if (auto st = refuse_non_file(path, path); !st) return st;
   const fs::path parent = fs::path(path).parent_path();
   if (auto s = check_output_dir(parent.empty() ? "." : parent.string()); !s) return Error{path, "", s.error().reason};
   return Ok{};
