@@ -891,6 +891,19 @@ struct Builder {
       for (auto it = n.children.rbegin(); it != n.children.rend(); ++it) stack.push_back(*it);
     }
     if (bases.empty()) return c.err("$.nodes", "the scene has no mesh");
+    // A skinned node's joints must be in its scene (the validator's NODE_SKIN_NO_SCENE): their
+    // transforms are the scene's, so a skeleton outside it has no place to be drawn from.
+    if (scene >= 0)
+      for (const auto& b : bases)
+        for (std::size_t l = 0; l <= b.lod_nodes.size(); ++l) {
+          const int gn = l == 0 ? b.node : b.lod_nodes[l - 1];
+          const int skin = m.nodes[gn].skin;
+          if (skin < 0 || skin >= static_cast<int>(m.skins.size())) continue;  // add_mesh names a bad skin
+          for (int j : m.skins[skin].joints)
+            if (j >= 0 && j < static_cast<int>(m.nodes.size()) && !seen[j])
+              return c.err(idx("nodes", gn), "its skin " + std::to_string(skin) + " has joint node " + std::to_string(j) +
+                                                 ", which is not in scene " + std::to_string(scene));
+        }
     std::size_t levels = 1;
     for (const auto& b : bases) levels = std::max(levels, b.lod_nodes.size() + 1);
     out.lods.resize(levels);
