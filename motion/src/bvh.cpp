@@ -487,9 +487,10 @@ std::optional<Floor> find_floor(const modeler::Skeleton& sk) {
 }
 
 // The captured feet go below the floor where our joint limits differ from the actor's (our ankle
-// dorsiflexes 20 degrees: a deep crouch on flat feet points our toes into the floor) and where the
-// capture itself does (toe markers). A toe tip below the floor extends its toe joint as far as that
-// lifts it; then, if any foot point is still below, the whole body rises by that much.
+// dorsiflexes 45 degrees, the weight-bearing range: a deeper crouch on flat feet points our toes
+// into the floor; at AAOS's active 20 degrees, 01_01's crouch did) and where the capture itself
+// does (toe markers). A toe tip below the floor extends its toe joint as far as that lifts it;
+// then, if any foot point is still below, the whole body rises by that much.
 void keep_above_floor(const modeler::Skeleton& sk, const Floor& fl, modeler::Posture& p, std::span<glm::mat4> w) {
   sk.world_transforms(p, w);
   for (int s = 0; s < 2; ++s) {
@@ -539,7 +540,12 @@ Result<Clip> retarget(const BvhFile& bvh, const modeler::Skeleton& sk, const std
                    "Mixamo and thigh_l/calf_l names, e.g. LeftUpLeg/LeftLeg/LeftFoot, LeftHip/LeftKnee/LeftAnkle, "
                    "lThigh/lShin/lFoot, lfemur/ltibia/lfoot)"};
   const int hips = at[kHips];
-  struct Mapped { int ours, child, from, to, next = -1; };  // next: end of the child's bone
+  // next: end of the child's bone. For a foot, shin: the BVH's knee; bend: how much wider our rest
+  // angle between shin and foot is than the BVH's, radians (see below).
+  struct Mapped {
+    int ours, child, from, to, next = -1, shin = -1;
+    float bend = 0;
+  };
   std::vector<Mapped> links;
   for (const Link& l : kLinks) {
     int o = sk.find_joint(l.ours), c = child_of(l.ours) ? sk.find_joint(child_of(l.ours)) : -1;
@@ -571,6 +577,27 @@ Result<Clip> retarget(const BvhFile& bvh, const modeler::Skeleton& sk, const std
   // (In any unit a leg is longer than this; a shorter one would scale the root's travel past float's range.)
   if (!(bvh_leg > 1e-6f)) return Error{std::string(file), "HIERARCHY", "the BVH leg has no length"};
   float scale = our_leg / bvh_leg;
+  // Feet: CMU's foot bone (ankle to toe base) points 10.5 degrees below the horizontal in its rest
+  // pose, a flat-footed stance, 101-104 degrees from the shin; ours (ankle to ball) 20 below, 109
+  // from the shin. Matched as directions, our flat foot came out toes up: standing in 01_01, toe
+  // tips 1-2 cm above their flat height (3 cm once the ankle could dorsiflex past 20 degrees). A
+  // foot keeps the source's angle to its shin plus the rest poses' difference (`bend`, radians; 5-8
+  // degrees in CMU's clips), turned in the plane of the two bones.
+  auto angle = [](glm::vec3 a, glm::vec3 b) {
+    return std::acos(std::clamp(glm::dot(glm::normalize(a), glm::normalize(b)), -1.0f, 1.0f));
+  };
+  for (Mapped& m : links) {
+    const int shin = m.from == at[kLFoot] ? at[kLShin] : m.from == at[kRFoot] ? at[kRShin] : -1;
+    const int knee = sk.joints()[m.ours].parent;
+    if (shin < 0 || knee < 0) continue;
+    const glm::vec3 up_b = bpos[shin] - bpos[m.from], foot_b = bpos[m.to] - bpos[m.from];
+    const glm::vec3 up_o(rest[knee][3] - rest[m.ours][3]),
+        foot_o(rest[m.child][3] - rest[m.ours][3]);
+    if (glm::length(glm::cross(glm::normalize(up_b), glm::normalize(foot_b))) < 0.1f)
+      continue;  // no plane
+    m.shin = shin;
+    m.bend = angle(up_o, foot_o) - angle(up_b, foot_b);
+  }
   // Ground: the lower ankle sits where ours does in the neutral posture, at the height the lower ankle
   // has in most frames (the median over the clip: one foot is down in most frames of a capture, and a
   // single frame may be a glitch; CMU's first frames often hold the ankles 0.3-0.8 units lower than
@@ -667,6 +694,11 @@ Result<Clip> retarget(const BvhFile& bvh, const modeler::Skeleton& sk, const std
       glm::mat3 parent_rot = j.parent >= 0 ? glm::mat3(w[j.parent]) : glm::mat3(1.0f);
       glm::vec3 dw = bpos[m.to] - bpos[m.from];
       if (glm::length(dw) < 1e-6f) continue;
+      if (m.shin >= 0) {  // a foot: away from its shin by the rest poses' difference
+        const glm::vec3 up = bpos[m.shin] - bpos[m.from], axis = glm::cross(up, dw);
+        if (glm::length(axis) > 0.1f * glm::length(up) * glm::length(dw))
+          dw = glm::mat3(glm::rotate(glm::mat4(1.0f), m.bend, glm::normalize(axis))) * dw;
+      }
       glm::vec3 d0 = glm::normalize(sk.joints()[m.child].offset);
       glm::vec3 dl = glm::normalize(glm::transpose(parent_rot) * glm::normalize(dw));
       std::vector<float> v(j.dofs.size());

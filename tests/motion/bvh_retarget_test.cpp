@@ -63,6 +63,14 @@ struct Measures {
   std::vector<char> feet_down;            // per frame: both the source's ankles are at its floor's height
   std::vector<char> standing;             // per frame: and its legs are nearly straight and upright
   std::vector<float> lift;                // per frame: our hips' height less the source's, scaled, metres
+  // Per side (left, right), per frame: that foot is down in the source and its ankle is dorsiflexed
+  // more than 20 degrees (the active, non-weight-bearing range): shin and foot closer than in its
+  // rest pose.
+  std::vector<char> crouch[2];
+  // Per side, per frame: how much farther our ankle is bent from its rest angle (shin to foot,
+  // neutral posture) than the source's from its rest pose's, degrees (positive: ours more
+  // dorsiflexed).
+  std::vector<float> ankle_bend[2];
 };
 
 Measures measure(const motion::BvhFile& bvh, const motion::Clip& clip, const modeler::Skeleton& sk) {
@@ -78,6 +86,18 @@ Measures measure(const motion::BvhFile& bvh, const motion::Clip& clip, const mod
   const int feet[] = {sk.find_joint("l_ankle"), sk.find_joint("r_ankle"), sk.find_joint("l_metatarsophalangeal"),
                       sk.find_joint("r_metatarsophalangeal"), sk.find_joint("l_toe_tip"), sk.find_joint("r_toe_tip")};
   const int lankle = bvh_index(bvh, {"LeftFoot", "LeftAnkle"}), rankle = bvh_index(bvh, {"RightFoot", "RightAnkle"});
+  // The angle between shin (ankle to knee) and foot (ankle to toe), degrees: the source's and ours.
+  auto between = [](glm::vec3 a, glm::vec3 b) {
+    return glm::degrees(
+        std::acos(std::clamp(glm::dot(glm::normalize(a), glm::normalize(b)), -1.0f, 1.0f)));
+  };
+  auto ankle_angle = [&](const std::vector<glm::vec3>& p, int side) {
+    return between(p[from[2 + side]] - p[to[2 + side]], p[to[4 + side]] - p[from[4 + side]]);
+  };
+  auto our_ankle_angle = [&](const std::vector<glm::mat4>& w, int side) {
+    return between(glm::vec3(w[ofrom[2 + side]][3] - w[oto[2 + side]][3]),
+                   glm::vec3(w[oto[4 + side]][3] - w[ofrom[4 + side]][3]));
+  };
   // The source's floor: the height its lower ankle has in most frames (the median over the clip).
   std::vector<float> lower;
   for (size_t f = 0; f < bvh.frames.size(); ++f) {
@@ -91,6 +111,8 @@ Measures measure(const motion::BvhFile& bvh, const motion::Clip& clip, const mod
   const auto neutral = sk.world_transforms(sk.neutral());
   const float scale = glm::length(glm::vec3(neutral[ofrom[0]][3] - neutral[oto[2]][3])) / src_leg;
   const float our_ankle = neutral[oto[2]][3].y;
+  const float rest_ankle[2] = {ankle_angle(rest, 0), ankle_angle(rest, 1)};
+  const float our_rest_ankle[2] = {our_ankle_angle(neutral, 0), our_ankle_angle(neutral, 1)};
   for (size_t f = 0; f < bvh.frames.size(); ++f) {
     auto p = motion::world_positions(bvh, f);
     auto w = sk.world_transforms(clip.frames[f]);
@@ -113,6 +135,12 @@ Measures measure(const motion::BvhFile& bvh, const motion::Clip& clip, const mod
     m.lift.push_back(0.5f * (w[ofrom[0]][3].y + w[ofrom[1]][3].y) -
                      ((0.5f * (p[from[0]].y + p[from[1]].y) - src_floor) * scale + our_ankle));
     m.standing.push_back(down && straight);
+    for (int s = 0; s < 2; ++s) {
+      const int ankle = s == 0 ? lankle : rankle;
+      const float src_bend = rest_ankle[s] - ankle_angle(p, s);
+      m.crouch[s].push_back(p[ankle].y - src_floor < 0.05f * src_leg && src_bend > 20.0f);
+      m.ankle_bend[s].push_back((our_rest_ankle[s] - our_ankle_angle(w, s)) - src_bend);
+    }
   }
   return m;
 }
@@ -152,9 +180,11 @@ TEST(BvhRetarget, BonesPointTheSourcesWayFacingAnyDirection) {
       std::printf("%s %-12s mean %5.1f worst %5.1f deg, %5.1f %% within 10\n", file, bones()[b].what, sum / a.size(),
                   *std::max_element(a.begin(), a.end()), 100 * share_within(a, 10));
       const bool foot = b == 4 || b == 5;
-      // Thighs, shins, upper arms and forearms: within 20 degrees on 97 % of the frames (the elbows'
-      // limits cut a few). The feet have our narrower ankle (dorsiflexion to 20 degrees, no turn-out of its
-      // own): within 30 degrees on 85 %.
+      // Thighs, shins, upper arms and forearms: within 20 degrees on 97 % of the frames (the
+      // elbows' limits cut a few). The feet have our narrower ankle (no turn-out of its own) and
+      // are matched by their angle to the shin from the rest poses', not as a direction (at rest
+      // CMU's foot bone is 101-104 degrees from the shin, ours 109; see the crouch test below):
+      // within 30 degrees on 85 %.
       if (foot) {
         EXPECT_GE(share_within(a, 30), 0.85f) << file << " " << bones()[b].what;
       } else {
@@ -172,10 +202,14 @@ TEST(BvhRetarget, BonesPointTheSourcesWayFacingAnyDirection) {
   }
 }
 
-// Found in an audit: the root was placed at the BVH root's height scaled by the legs' ratio (CMU's root sits
-// ~11 cm, scaled, above its hip joints, ours 4 cm), over a floor taken from the first frame's lower ankle (a
-// glitch in CMU's first frames): standing in 01_01, our feet were 7-13 cm above the floor. And with the knees
-// straight and the feet pointing down, toe tips went 0.20 m (01_01) and 0.42 m (131_01) below it.
+// Found in an audit: the root was placed at the BVH root's height scaled by the legs' ratio (CMU's
+// root sits ~11 cm, scaled, above its hip joints, ours 4 cm), over a floor taken from the first
+// frame's lower ankle (a glitch in CMU's first frames): standing in 01_01, our feet were 7-13 cm
+// above the floor. And with the knees straight and the feet pointing down, toe tips went 0.20 m
+// (01_01) and 0.42 m (131_01) below it. Then the feet, matched to CMU's foot bone as a direction,
+// stood toes up: standing, the lowest foot point 3.0-3.9 cm (our flat foot's toe tip: 2 cm); with
+// both feet down at most 4.3 and 4.0 cm. They keep the source's ankle angle from the rest pose
+// now: 1.1-3.0 cm, at most 3.4 and 2.9 cm.
 TEST(BvhRetarget, FeetStayOnTheFloorAndDoNotFloat) {
   if (!std::filesystem::exists(data("01_01.bvh"))) GTEST_SKIP() << "shared data absent: " << data("") << " (needs the CMU clips)";
   const auto& sk = modeler::default_skeleton();
@@ -199,10 +233,56 @@ TEST(BvhRetarget, FeetStayOnTheFloorAndDoNotFloat) {
     if (standing > 0) std::printf("%s standing (%d frames): lowest foot point %.3f..%.3f m\n", file, standing, stand_lo, stand_hi);
     EXPECT_GT(lowest, -0.02f) << file << ": a foot goes below the floor";
     ASSERT_GT(down, 100) << file;
-    EXPECT_LT(down_highest, 0.05f) << file << ": with both feet down in the source, ours float";
+    EXPECT_LT(down_highest, 0.04f) << file << ": with both feet down in the source, ours float";
     if (standing > 0) {
       EXPECT_GT(stand_lo, -0.01f) << file;
-      EXPECT_LT(stand_hi, 0.045f) << file;
+      EXPECT_LT(stand_hi, 0.035f) << file << ": standing, our toes are up";
     }
+  }
+}
+
+// A known leftover of the audit above: our ankle dorsiflexed 20 degrees (AAOS's active range), and
+// where the actor crouches on flat feet (01_01: 1409 foot-frames with an ankle more than 20 degrees
+// past its rest angle, up to 42; 131_01: 320, up to 45) ours stopped there and tipped the toes into
+// the floor: the ankle 8.2 and 5.7 degrees off the source's bend on average (worst 21.6, 23.7), the
+// heel up, the body lifted up to 3.7 cm. The limit is the weight-bearing range now (45 degrees,
+// data/skeleton.json), and the foot is retargeted from the rest poses' ankle angle (at rest CMU's
+// foot bone is 101-104 degrees from the shin, ours 109; matched as a direction, ours stayed 6
+// degrees more bent once the limit allowed): 1.1 and 1.5 degrees off on average (worst 8.3, 13.4),
+// the hips lifted 0 and 2 mm on average.
+TEST(BvhRetarget, CrouchingAnklesBendLikeTheSources) {
+  if (!std::filesystem::exists(data("01_01.bvh")))
+    GTEST_SKIP() << "shared data absent: " << data("") << " (needs the CMU clips)";
+  const auto& sk = modeler::default_skeleton();
+  for (const char* file : {"01_01.bvh", "131_01.bvh"}) {
+    const Loaded l = load(file);
+    const Measures m = measure(l.bvh, l.clip, sk);
+    std::vector<float> ankle, shin;
+    double lift = 0;
+    float lift_worst = 0;
+    for (int s = 0; s < 2; ++s)
+      for (size_t f = 0; f < m.crouch[s].size(); ++f) {
+        if (!m.crouch[s][f]) continue;
+        ankle.push_back(std::abs(m.ankle_bend[s][f]));
+        shin.push_back(m.angle[2 + s][f]);
+        lift += m.lift[f];
+        lift_worst = std::max(lift_worst, m.lift[f]);
+      }
+    ASSERT_GT(ankle.size(), 200u) << file << ": the crouch should be found";
+    double ankle_sum = 0, shin_sum = 0;
+    for (float x : ankle) ankle_sum += x;
+    for (float x : shin) shin_sum += x;
+    const double n = static_cast<double>(ankle.size());
+    std::printf(
+        "%s crouching (%zu foot-frames): ankle bend off by mean %.1f worst %.1f deg, %.1f %% "
+        "within 5; shin "
+        "mean %.1f worst %.1f deg; hips lifted mean %.3f worst %.3f m\n",
+        file, ankle.size(), ankle_sum / n, *std::max_element(ankle.begin(), ankle.end()),
+        100 * share_within(ankle, 5), shin_sum / n, *std::max_element(shin.begin(), shin.end()),
+        lift / n, lift_worst);
+    EXPECT_LT(ankle_sum / n, 3.0) << file << ": crouching, our ankles bend less than the source's";
+    EXPECT_GE(share_within(ankle, 5), 0.9f) << file;
+    EXPECT_LT(shin_sum / n, 1.0) << file;
+    EXPECT_LT(lift / n, 0.004) << file << ": crouching, our body is lifted off the source's height";
   }
 }

@@ -15,8 +15,10 @@
 // the BVH's are (scaled by the ratio of leg lengths, over a ground at the clip's median lower-ankle
 // height) and, for every other mapped joint (toes included), turns our link to point the way the BVH
 // bone points (a least-squares fit of the joint's own DOFs, clamped to their limits; the twist about a
-// bone is not transferred). No foot point goes below the floor (y = 0): a toe tip there extends its
-// toe, then the body rises as far as needed. The clip keeps the BVH's frame count and frame rate.
+// bone is not transferred; a foot's angle to its shin moves from our rest angle as the source's
+// moves from its rest pose's: CMU's flat foot bone rests 101-104 degrees from the shin, ours 109).
+// No foot point goes below the floor (y = 0): a toe tip there extends its toe, then the body rises
+// as far as needed. The clip keeps the BVH's frame count and frame rate.
 #pragma once
 
 #include <string>
