@@ -86,12 +86,24 @@ glm::vec4 sample_channel(const Channel& c, float time) {
   return value(k0);
 }
 
-void sample_clip(const Model& model, int clip, float time, std::span<Transform> locals) {
+namespace {
+
+// A STEP channel's value just before `time`: the last key strictly before it (the first key where
+// none is).
+glm::vec4 step_value_before(const Channel& c, float time) {
+  const auto& ts = c.times;
+  assert(!ts.empty() && c.interpolation == Interpolation::kStep);
+  const std::size_t before = static_cast<std::size_t>(std::lower_bound(ts.begin(), ts.end(), time) - ts.begin());
+  const glm::vec4& v = c.values[before > 0 ? before - 1 : 0];
+  return c.path == ChannelPath::kRotation ? normalize_quat(v) : v;
+}
+
+void sample_clip_at(const Model& model, int clip, float time, bool before, std::span<Transform> locals) {
   assert(locals.size() == model.nodes.size());
   for (std::size_t i = 0; i < locals.size(); ++i) locals[i] = model.nodes[i].rest;
   if (clip < 0 || clip >= static_cast<int>(model.clips.size())) return;
   for (const Channel& c : model.clips[clip].channels) {
-    glm::vec4 v = sample_channel(c, time);
+    glm::vec4 v = before && c.interpolation == Interpolation::kStep ? step_value_before(c, time) : sample_channel(c, time);
     Transform& t = locals[c.node];
     switch (c.path) {
       case ChannelPath::kTranslation: t.translation = glm::vec3(v); break;
@@ -99,6 +111,16 @@ void sample_clip(const Model& model, int clip, float time, std::span<Transform> 
       case ChannelPath::kScale: t.scale = glm::vec3(v); break;
     }
   }
+}
+
+}  // namespace
+
+void sample_clip(const Model& model, int clip, float time, std::span<Transform> locals) {
+  sample_clip_at(model, clip, time, false, locals);
+}
+
+void sample_clip_before(const Model& model, int clip, float time, std::span<Transform> locals) {
+  sample_clip_at(model, clip, time, true, locals);
 }
 
 void world_matrices(const Model& model, std::span<const Transform> locals, std::span<glm::mat4> world) {

@@ -420,10 +420,10 @@ BakedFrames baked_frames(const Model& m, const Character& ch, float time) {
   BakedFrames b;
   b.clip = m.clips.empty() ? 0 : std::clamp(ch.clip, 0, static_cast<int>(m.clips.size()) - 1);
   const BakedClip& bc = m.baked_clips()[b.clip];
-  const float fx = clip_time(ch.phase + ch.speed * time, m.clip_duration(b.clip), true) * bc.rate;
-  b.f0 = std::min(static_cast<int>(fx), bc.frame_count - 1);
-  b.f1 = std::min(b.f0 + 1, bc.frame_count - 1);
-  b.blend = b.f1 > b.f0 && !bc.stepped ? fx - static_cast<float>(b.f0) : 0.0f;
+  const BakedSample s = bc.sample(clip_time(ch.phase + ch.speed * time, m.clip_duration(b.clip), true));
+  b.f0 = s.f0;
+  b.f1 = s.f1;
+  b.blend = s.blend;
   return b;
 }
 

@@ -1136,8 +1136,9 @@ Status decode_meshopt(tg::Model& m, const Ctx& c) {
   return Ok{};
 }
 
-// Model::bake keeps palette.size() * 3 vec4 per frame of every clip at the bake rate. A damaged key time (1e30 s)
-// would overflow its frame count, or ask for terabytes and minutes: at most 2^20 frames and 1 GiB in all.
+// Model::bake keeps palette.size() * 3 vec4 per frame of every clip at the bake rate, and up to two more per
+// key of a STEP channel (BakedClip's step edges). A damaged key time (1e30 s) would overflow its frame count,
+// or ask for terabytes and minutes: at most 2^20 frames and 1 GiB in all.
 Status check_bake_size(const Model& model, float bake_rate, const std::string& path) {
   const double rate = bake_rate > 0.0f ? bake_rate : 60.0;  // as bake() takes it
   double frames = 0.0, longest = -1.0;
@@ -1145,6 +1146,8 @@ Status check_bake_size(const Model& model, float bake_rate, const std::string& p
   for (std::size_t i = 0; i < model.clips.size(); ++i) {
     const double d = model.clips[i].duration;
     frames += d > 0.0 ? std::ceil(d * rate) + 1.0 : 1.0;
+    for (const Channel& c : model.clips[i].channels)
+      if (c.interpolation == Interpolation::kStep) frames += 2.0 * static_cast<double>(c.times.size());
     if (d > longest) longest = d, longest_clip = static_cast<int>(i);
   }
   const double bytes = frames * static_cast<double>(model.palette.size()) * 3.0 * sizeof(glm::vec4);

@@ -25,6 +25,28 @@ float Model::clip_duration(int clip) const {
   return clip >= 0 && clip < static_cast<int>(clips.size()) ? clips[clip].duration : 0.0f;
 }
 
+BakedSample BakedClip::sample(float time) const {
+  BakedSample s;
+  if (frame_count <= 1) return s;
+  if (!(time > 0.0f)) time = 0.0f;  // NaN too
+  // The grid frame at or before `time`.
+  const float fx = std::min(time * rate, static_cast<float>(grid.size() - 1));
+  if (grid.size() == times.size()) {  // no step edges: the grid alone, in frame units
+    s.f0 = static_cast<int>(fx);
+    s.f1 = std::min(s.f0 + 1, frame_count - 1);
+    if (!stepped && s.f1 > s.f0) s.blend = fx - static_cast<float>(s.f0);
+    return s;
+  }
+  // Then over the edges' frames to the last frame at or before it.
+  int f = grid[static_cast<std::size_t>(fx)];
+  while (f > 0 && times[f] > time) --f;
+  while (f + 1 < frame_count && times[f + 1] <= time) ++f;
+  s.f0 = f;
+  s.f1 = std::min(f + 1, frame_count - 1);
+  if (!stepped && s.f1 > s.f0) s.blend = std::clamp((time - times[f]) / (times[f + 1] - times[f]), 0.0f, 1.0f);
+  return s;
+}
+
 void Model::set_posture_pairs(std::span<const PosturePair> pairs) {
   posture_pairs_.assign(pairs.begin(), pairs.end());
   if (posture_pairs_.empty()) posture_pairs_.push_back(PosturePair{});
@@ -51,6 +73,53 @@ namespace {
 // Frames sampled to measure a clip (bounds, variability): every baked frame up to `cap`.
 int sample_stride(int frames, int cap) { return std::max(1, (frames + cap - 1) / cap); }
 
+// Local transforms of baked frame `f` of `bc`, clip `clip` (-1: the rest pose).
+void sample_frame(const Model& m, int clip, const BakedClip& bc, int f, std::span<Transform> locals) {
+  if (bc.before_step[f]) sample_clip_before(m, clip, bc.times[f], locals);
+  else sample_clip(m, clip, bc.times[f], locals);
+}
+
+// BakedClip's frames for clip `clip` (-1: the rest pose, one frame) of `duration` seconds at `rate`:
+// times, before_step, grid and stepped (see BakedClip).
+void lay_out_frames(const Model& m, int clip, float duration, float rate, BakedClip& bc) {
+  const int grid_count = duration > 0.0f ? static_cast<int>(std::ceil(duration * rate - 1e-3f)) + 1 : 1;
+  const std::vector<Channel> none;
+  const std::vector<Channel>& channels = clip >= 0 ? m.clips[clip].channels : none;
+  bc.stepped = !channels.empty() &&
+               std::all_of(channels.begin(), channels.end(), [](const Channel& c) { return c.interpolation == Interpolation::kStep; });
+  // The step edges: the keys where a STEP channel's value changes, inside (0, duration] (a key at
+  // or before 0 holds from the start).
+  std::vector<float> edges;
+  for (const Channel& c : channels)
+    if (c.interpolation == Interpolation::kStep)
+      for (std::size_t k = 1; k < c.times.size(); ++k)
+        if (c.values[k] != c.values[k - 1] && c.times[k] > 0.0f && c.times[k] <= duration) edges.push_back(c.times[k]);
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  bc.times.clear();
+  bc.before_step.clear();
+  bc.grid.clear();
+  auto add = [&](float t, bool before) {
+    bc.times.push_back(t);
+    bc.before_step.push_back(before ? 1 : 0);
+  };
+  // An edge's frames: the pose just before the key (the stepped clip's blend never reaches it), then
+  // the pose at it unless grid frame `grid_time` is at that very time.
+  auto add_edge = [&](float t, float grid_time) {
+    if (!bc.stepped) add(t, true);
+    if (t != grid_time) add(t, false);
+  };
+  std::size_t e = 0;
+  for (int g = 0; g < grid_count; ++g) {
+    const float t = std::min(static_cast<float>(g) / rate, duration);
+    for (; e < edges.size() && edges[e] <= t; ++e) add_edge(edges[e], t);
+    bc.grid.push_back(static_cast<int>(bc.times.size()));
+    add(t, false);
+  }
+  for (; e < edges.size(); ++e) add_edge(edges[e], -1.0f);
+  bc.frame_count = static_cast<int>(bc.times.size());
+}
+
 // Per node: whether it is a skin joint (a palette node), and whether one of its children is. The
 // skeleton's end joints are the joints without a joint child.
 struct SkeletonFlags {
@@ -64,7 +133,7 @@ SkeletonFlags skeleton_flags(const Model& m) {
   return f;
 }
 
-// BakedClip::ground_speed from `track`: per frame, the skeleton root's place, then the `ends` end
+// BakedClip::ground_speed from `track`: per grid frame, the skeleton root's place, then the `ends` end
 // joints' places (model space); `height` the model's. Each frame's step of the body over its lowest
 // end joint, along the steps' mean direction; the median of those speeds. (Of the medians of their
 // lengths and of the means, this came closest on our walk, whose clip name gives its speed: 1.26
@@ -73,18 +142,19 @@ float ground_speed(const BakedClip& bc, const std::vector<glm::vec3>& track, std
   const std::size_t stride = ends + 1;
   std::vector<glm::vec2> steps;
   glm::vec2 sum(0.0f);
-  for (int f = 0; f + 1 < bc.frame_count; ++f) {
-    const glm::vec3* a = &track[static_cast<std::size_t>(f) * stride];
+  const int grid_count = static_cast<int>(bc.grid.size());
+  for (int g = 0; g + 1 < grid_count; ++g) {
+    const glm::vec3* a = &track[static_cast<std::size_t>(g) * stride];
     const glm::vec3* b = a + stride;
     std::size_t low = 1;
     for (std::size_t e = 2; e <= ends; ++e)
       if (a[e].y < a[low].y) low = e;
-    if (a[low].y - bc.bounds[f][0].y > 0.15f * height) continue;  // no end joint near the ground
+    if (a[low].y - bc.bounds[bc.grid[g]][0].y > 0.15f * height) continue;  // no end joint near the ground
     const glm::vec3 d = (b[0] - b[low]) - (a[0] - a[low]);       // the body over the foot
     steps.emplace_back(d.x, d.z);
     sum += steps.back();
   }
-  if (steps.empty() || 4 * steps.size() < static_cast<std::size_t>(bc.frame_count - 1) || glm::length(sum) <= 0.0f)
+  if (steps.empty() || 4 * steps.size() < static_cast<std::size_t>(grid_count - 1) || glm::length(sum) <= 0.0f)
     return 0.0f;
   const glm::vec2 u = glm::normalize(sum);
   std::vector<float> speeds;
@@ -117,7 +187,7 @@ void Model::bake(float rate) {
   std::vector<int> ends;
   for (std::size_t i = 0; i < nn; ++i)
     if (skeleton.joint[i] && !skeleton.parent_of_joint[i]) ends.push_back(static_cast<int>(i));
-  // Per clip and frame: the skeleton root's place, then each end joint's place (model space).
+  // Per clip and grid frame: the skeleton root's place, then each end joint's place (model space).
   std::vector<std::vector<glm::vec3>> tracks;
   const int clip_count = std::max<int>(1, static_cast<int>(clips.size()));
   for (int ci = 0; ci < clip_count; ++ci) {
@@ -125,21 +195,19 @@ void Model::bake(float rate) {
     const float dur = clip_duration(clip);
     BakedClip bc;
     bc.rate = rate;
-    bc.stepped = clip >= 0 && !clips[clip].channels.empty() &&
-                 std::all_of(clips[clip].channels.begin(), clips[clip].channels.end(),
-                             [](const Channel& c) { return c.interpolation == Interpolation::kStep; });
-    bc.frame_count = dur > 0.0f ? static_cast<int>(std::ceil(dur * rate - 1e-3f)) + 1 : 1;
+    lay_out_frames(*this, clip, dur, rate, bc);
     bc.first_row = static_cast<std::uint32_t>(baked_palette_.size() / std::max<std::size_t>(1, np * 3));
+    tracks.emplace_back();
     for (int f = 0; f < bc.frame_count; ++f) {
-      sample_clip(*this, clip, std::min(f / rate, dur), locals);
+      sample_frame(*this, clip, bc, f, locals);
       world_matrices(*this, locals, world);
       palette_matrices(*this, world, pal);
       bc.root_offset.push_back(root >= 0 ? glm::vec2(world[root][3].x, world[root][3].z) - rest_root : glm::vec2(0.0f));
-      if (f == 0) tracks.emplace_back();
-      tracks.back().push_back(root >= 0 ? glm::vec3(world[root][3]) : glm::vec3(0.0f));
-      for (int e : ends) tracks.back().push_back(glm::vec3(world[e][3]));
       for (const glm::mat4& m : pal)
         for (int r = 0; r < 3; ++r) baked_palette_.emplace_back(m[0][r], m[1][r], m[2][r], m[3][r]);
+      if (!std::binary_search(bc.grid.begin(), bc.grid.end(), f)) continue;  // ground_speed reads the grid
+      tracks.back().push_back(root >= 0 ? glm::vec3(world[root][3]) : glm::vec3(0.0f));
+      for (int e : ends) tracks.back().push_back(glm::vec3(world[e][3]));
     }
     baked_.push_back(std::move(bc));
   }
@@ -489,7 +557,7 @@ void Model::bake_posture() {
     for (std::size_t ci = 0; ci < clips.size(); ++ci) {
       const BakedClip& bc = baked_[ci];
       for (int f = 0; f < bc.frame_count; f += sample_stride(bc.frame_count, 60)) {
-        sample_clip(*this, static_cast<int>(ci), std::min(f / bc.rate, clips[ci].duration), locals);
+        sample_frame(*this, static_cast<int>(ci), bc, f, locals);
         world_matrices(*this, locals, world);
         for (std::size_t k = 0; k < n; ++k) pos[k] = point_position(points[k], world);
         for (Cand& c : cands) {
@@ -546,7 +614,7 @@ void Model::bake_posture() {
     const int clip = clips.empty() ? -1 : static_cast<int>(ci);
     bc.posture.resize(bc.frame_count);
     for (int f = 0; f < bc.frame_count; ++f) {
-      sample_clip(*this, clip, std::min(f / bc.rate, clip_duration(clip)), locals);
+      sample_frame(*this, clip, bc, f, locals);
       world_matrices(*this, locals, world);
       for (int k = 0; k < kPosturePairs; ++k) {
         glm::vec3 d = point_position(posture_pairs_[k].a, world) - point_position(posture_pairs_[k].b, world);

@@ -1372,6 +1372,78 @@ TEST(FramePlanner, SteppedClipsHoldTheirPosesBetweenBakedFrames) {
   EXPECT_NEAR(blend_at(Interpolation::kLinear, 0.495f), 0.7f, 1e-3f);  // 0.495 s is frame 29.7
 }
 
+// A root and two joints beside it, one moved along x by a STEP channel (0 until 0.25 s, 1 until
+// 0.51 s, then 2), the other by a LINEAR one (x = t over the 1 s clip), a vertex on each: the clip
+// mixes STEP with LINEAR.
+Model step_and_linear_model() {
+  Model m;
+  m.nodes = {Node{"root", -1, {}}, Node{"held", 0, {}}, Node{"slid", 0, {}}};
+  m.palette = {PaletteEntry{0, glm::mat4(1)}, PaletteEntry{1, glm::mat4(1)}, PaletteEntry{2, glm::mat4(1)}};
+  MeshLod lod;
+  lod.vertices.resize(3);
+  lod.vertices[0].position = {0, 1, 0};
+  lod.vertices[1].joints = glm::u16vec4(1, 0, 0, 0);
+  lod.vertices[2].joints = glm::u16vec4(2, 0, 0, 0);
+  lod.indices = {0, 1, 2};
+  lod.primitives = {Primitive{0, 3, 0}};
+  m.lods = {lod};
+  m.materials = {Material{}};
+  Channel held;
+  held.node = 1;
+  held.interpolation = Interpolation::kStep;
+  held.times = {0.0f, 0.25f, 0.51f};  // 0.25 s is grid frame 15, 0.51 s lies between frames 30 and 31
+  held.values = {{0, 0, 0, 0}, {1, 0, 0, 0}, {2, 0, 0, 0}};
+  Channel slid;
+  slid.node = 2;
+  slid.times = {0.0f, 1.0f};
+  slid.values = {{0, 0, 0, 0}, {1, 0, 0, 0}};
+  m.clips = {Clip{"mixed", 1.0f, {held, slid}}};
+  m.bake(60.0f);
+  return m;
+}
+
+// In a clip that mixes STEP and LINEAR channels, the STEP joint holds its key until the next and
+// jumps exactly at it, whatever time the game plays between the 60 Hz baked frames, while the LINEAR
+// joint goes on interpolating. Read as the GPU skins: the instance's two palette rows and blend.
+// (Each frame's palette used to be blended whole: 0.505 s, frame 30.3, drew the STEP joint at x = 0.3,
+// and it reached 1 only at frame 31, 0.5167 s.)
+TEST(FramePlanner, MixedStepAndLinearChannelsStepExactlyAtTheirKeys) {
+  const Model m = step_and_linear_model();
+  EXPECT_FALSE(m.baked_clips()[0].stepped);
+  Crowd crowd(m);
+  crowd.add(Character{});
+  FramePlanner planner(m, view_test_only(8.0f));
+  // Joint `entry`'s x (its palette matrix's translation) at scene time `time`, as drawn.
+  auto x_at = [&](float time, int entry) {
+    const FramePlan& p = planner.plan(crowd, facing_camera(30.0f), time, RenderMode::kGeometry);
+    for (const auto& lod : p.geometry)
+      if (!lod.empty()) {
+        const glm::vec4 anim = lod[0].anim;
+        const auto pal = m.baked_palette();
+        auto x = [&](float row) { return pal[(static_cast<std::size_t>(row) * m.palette.size() + entry) * 3].w; };
+        return x(anim.y) + (x(anim.z) - x(anim.y)) * anim.w;
+      }
+    return -1.0f;
+  };
+  // The STEP joint: held between baked frames, jumping at the key on a grid frame and off it.
+  EXPECT_EQ(x_at(0.0f, 1), 0.0f);
+  EXPECT_EQ(x_at(0.1f, 1), 0.0f);
+  EXPECT_EQ(x_at(0.2499f, 1), 0.0f);  // frame 14.99
+  EXPECT_EQ(x_at(0.25f, 1), 1.0f);
+  EXPECT_EQ(x_at(0.2501f, 1), 1.0f);
+  EXPECT_EQ(x_at(0.505f, 1), 1.0f);   // frame 30.3
+  EXPECT_EQ(x_at(0.5099f, 1), 1.0f);  // frame 30.594
+  EXPECT_EQ(x_at(0.51f, 1), 2.0f);
+  EXPECT_EQ(x_at(0.5101f, 1), 2.0f);  // frame 30.606
+  EXPECT_EQ(x_at(0.515f, 1), 2.0f);   // frame 30.9
+  EXPECT_EQ(x_at(0.9f, 1), 2.0f);
+  // The LINEAR joint: x = t, between baked frames and across the step's frames.
+  for (float t : {0.1f, 0.2499f, 0.25f, 0.2501f, 0.505f, 0.5099f, 0.51f, 0.5101f, 0.515f, 0.9f})
+    EXPECT_NEAR(x_at(t, 2), t, 1e-5f) << "t = " << t;
+  // The root does not move.
+  EXPECT_EQ(x_at(0.5099f, 0), 0.0f);
+}
+
 // A snapshot cut at a scale (aligned here) and then seen larger, by a zoom that leaves its window's
 // size class alone, is taken anew once it is seen 1.5 times larger than cut (kMagnifiedRefresh):
 // until then its texels were drawn blurred, however long the scene stood still. A snapshot that

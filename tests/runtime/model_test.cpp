@@ -97,6 +97,143 @@ TEST(SampleChannel, SlerpTakesShortestPath) {
   EXPECT_GT(q.z * q.w, 0.0f);  // the same sense as +90 about Z, not the long way round
 }
 
+// A root and two joints beside it, one moved along x by a STEP channel (0 until 0.25 s, 1 until
+// 0.51 s, then 2), the other by a channel of `slid` interpolation (x = t over the 1 s clip), a
+// vertex on each.
+Model step_and_slide(Interpolation slid_interpolation) {
+  Model m;
+  m.nodes = {Node{"root", -1, {}}, Node{"held", 0, {}}, Node{"slid", 0, {}}};
+  m.palette = {PaletteEntry{0, glm::mat4(1)}, PaletteEntry{1, glm::mat4(1)}, PaletteEntry{2, glm::mat4(1)}};
+  MeshLod lod;
+  lod.vertices.resize(3);
+  lod.vertices[0].position = {0, 1, 0};
+  lod.vertices[1].joints = glm::u16vec4(1, 0, 0, 0);
+  lod.vertices[2].joints = glm::u16vec4(2, 0, 0, 0);
+  lod.indices = {0, 1, 2};
+  lod.primitives = {Primitive{0, 3, 0}};
+  m.lods = {lod};
+  m.materials = {Material{}};
+  Channel held;
+  held.node = 1;
+  held.interpolation = Interpolation::kStep;
+  held.times = {0.0f, 0.25f, 0.51f};  // 0.25 s is grid frame 15, 0.51 s lies between frames 30 and 31
+  held.values = {{0, 0, 0, 0}, {1, 0, 0, 0}, {2, 0, 0, 0}};
+  Channel slid;
+  slid.node = 2;
+  slid.interpolation = slid_interpolation;
+  slid.times = {0.0f, 1.0f};
+  slid.values = {{0, 0, 0, 0}, {1, 0, 0, 0}};
+  if (slid_interpolation == Interpolation::kCubicSpline) slid.values = {{}, {0, 0, 0, 0}, {}, {}, {1, 0, 0, 0}, {}};
+  m.clips = {Clip{"mixed", 1.0f, {held, slid}}};
+  m.bake(60.0f);
+  return m;
+}
+
+// Just before a STEP key the channel still holds the key before it; other channels are continuous.
+TEST(SampleClip, BeforeHoldsTheStepKeyBeforeTheTime) {
+  const Model m = step_and_slide(Interpolation::kLinear);
+  std::vector<Transform> at(3), before(3);
+  for (float t : {0.25f, 0.51f, 0.3f, 0.0f, 1.0f}) {
+    sample_clip(m, 0, t, at);
+    sample_clip_before(m, 0, t, before);
+    const float held_at = t >= 0.51f ? 2.0f : t >= 0.25f ? 1.0f : 0.0f;
+    const float held_before = t > 0.51f ? 2.0f : t > 0.25f ? 1.0f : 0.0f;
+    EXPECT_EQ(at[1].translation.x, held_at) << "t = " << t;
+    EXPECT_EQ(before[1].translation.x, held_before) << "t = " << t;
+    EXPECT_EQ(before[2].translation, at[2].translation) << "t = " << t;
+  }
+}
+
+// A clip that mixes STEP and LINEAR channels is baked with the 60 Hz grid's 61 frames and, at each
+// STEP key, the pose just before it (then the pose at it where no grid frame is at that time): 64
+// frames. Each frame's palette rows, posture distances, bounds and root travel are its pose's, and
+// BakedClip::sample picks the frames around any time so that the STEP joint holds then jumps exactly
+// at its keys. A clip of STEP channels only needs the pose at an off-grid key alone, with blend 0.
+TEST(BakedClip, StepKeysGetFramesOfTheirOwn) {
+  const Model m = step_and_slide(Interpolation::kLinear);
+  const BakedClip& bc = m.baked_clips()[0];
+  EXPECT_FALSE(bc.stepped);
+  ASSERT_EQ(bc.frame_count, 64);
+  ASSERT_EQ(bc.grid.size(), 61u);
+  ASSERT_EQ(bc.times.size(), 64u);
+  ASSERT_EQ(bc.before_step.size(), 64u);
+  EXPECT_EQ(bc.grid[14], 14);
+  EXPECT_EQ(bc.grid[15], 16);  // frame 15: the pose just before 0.25 s
+  EXPECT_EQ(bc.grid[30], 31);
+  EXPECT_EQ(bc.grid[31], 34);  // frames 32 and 33: just before and at 0.51 s
+  EXPECT_EQ(bc.grid[60], 63);
+  EXPECT_EQ(bc.times[15], 0.25f);
+  EXPECT_EQ(bc.times[32], 0.51f);
+  EXPECT_EQ(bc.times[33], 0.51f);
+  for (int f = 0; f < bc.frame_count; ++f) EXPECT_EQ(bc.before_step[f] != 0, f == 15 || f == 32) << f;
+  EXPECT_EQ(bc.posture.size(), 64u);
+  EXPECT_EQ(bc.bounds.size(), 64u);
+  EXPECT_EQ(bc.root_offset.size(), 64u);
+  // Every frame holds its own pose.
+  const auto pal = m.baked_palette();
+  auto x = [&](int f, int entry) { return pal[((bc.first_row + f) * m.palette.size() + entry) * 3].w; };
+  std::vector<Transform> locals(3);
+  std::vector<glm::mat4> world(3);
+  for (int f = 0; f < bc.frame_count; ++f) {
+    if (bc.before_step[f]) sample_clip_before(m, 0, bc.times[f], locals);
+    else sample_clip(m, 0, bc.times[f], locals);
+    world_matrices(m, locals, world);
+    EXPECT_EQ(x(f, 1), locals[1].translation.x) << f;
+    EXPECT_EQ(x(f, 2), locals[2].translation.x) << f;
+    for (int k = 0; k < kPosturePairs; ++k) {
+      const PosturePair& pp = m.posture_pairs()[k];
+      const glm::vec3 d = point_position(pp.a, world) - point_position(pp.b, world);
+      EXPECT_EQ(bc.posture[f][k], glm::dot(d, d)) << f;
+    }
+    EXPECT_LE(bc.bounds[f][0].x, std::min(x(f, 1), x(f, 2))) << f;
+    EXPECT_GE(bc.bounds[f][1].x, std::max(x(f, 1), x(f, 2))) << f;
+  }
+  // The frames around a time, and what they show.
+  auto held_at = [&](float t) {
+    const BakedSample s = bc.sample(t);
+    EXPECT_TRUE(s.blend >= 0.0f && s.blend <= 1.0f);
+    return x(s.f0, 1) + (x(s.f1, 1) - x(s.f0, 1)) * s.blend;
+  };
+  auto slid_at = [&](float t) {
+    const BakedSample s = bc.sample(t);
+    return x(s.f0, 2) + (x(s.f1, 2) - x(s.f0, 2)) * s.blend;
+  };
+  const BakedSample s0 = bc.sample(0.2499f), s1 = bc.sample(0.25f), s2 = bc.sample(0.5099f), s3 = bc.sample(0.51f);
+  EXPECT_EQ(s0.f0, 14);
+  EXPECT_EQ(s0.f1, 15);
+  EXPECT_EQ(s1.f0, 16);
+  EXPECT_EQ(s1.f1, 17);
+  EXPECT_EQ(s1.blend, 0.0f);
+  EXPECT_EQ(s2.f0, 31);
+  EXPECT_EQ(s2.f1, 32);
+  EXPECT_NEAR(s2.blend, 0.99f, 1e-3f);
+  EXPECT_EQ(s3.f0, 33);
+  EXPECT_EQ(s3.f1, 34);
+  EXPECT_EQ(s3.blend, 0.0f);
+  EXPECT_EQ(bc.sample(1.0f).f0, 63);
+  EXPECT_EQ(bc.sample(1.0f).f1, 63);
+  for (float t : {0.0f, 0.1f, 0.2499f, 0.25f, 0.2501f, 0.505f, 0.5099f, 0.51f, 0.5101f, 0.515f, 0.9f, 0.999f}) {
+    EXPECT_EQ(held_at(t), t >= 0.51f ? 2.0f : t >= 0.25f ? 1.0f : 0.0f) << "t = " << t;
+    EXPECT_NEAR(slid_at(t), t, 1e-5f) << "t = " << t;
+  }
+  // CUBICSPLINE beside STEP is baked the same way.
+  EXPECT_EQ(step_and_slide(Interpolation::kCubicSpline).baked_clips()[0].frame_count, 64);
+  // STEP channels only: the off-grid key at 0.51 s gets the pose at it, nothing else does.
+  const Model stepped = step_and_slide(Interpolation::kStep);
+  const BakedClip& sc = stepped.baked_clips()[0];
+  EXPECT_TRUE(sc.stepped);
+  ASSERT_EQ(sc.frame_count, 62);
+  EXPECT_EQ(sc.grid[30], 30);
+  EXPECT_EQ(sc.grid[31], 32);
+  EXPECT_EQ(sc.times[31], 0.51f);
+  EXPECT_EQ(sc.before_step[31], 0);
+  const BakedSample h = sc.sample(0.5099f), j = sc.sample(0.51f);
+  EXPECT_EQ(h.f0, 30);
+  EXPECT_EQ(h.blend, 0.0f);
+  EXPECT_EQ(j.f0, 31);
+  EXPECT_EQ(j.blend, 0.0f);
+}
+
 TEST(LoadModel, MissingAndEmptyFilesAreErrors) {
   auto r = load_model("/nonexistent/x.glb");
   ASSERT_FALSE(r.ok());

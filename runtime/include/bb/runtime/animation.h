@@ -24,6 +24,11 @@ glm::vec4 sample_channel(const Channel& channel, float time);
 // `clip` may be -1 for the rest pose. locals.size() == model.nodes.size().
 void sample_clip(const Model& model, int clip, float time, std::span<Transform> locals);
 
+// The same just before `time` (the limit from the left): a STEP channel with a key at `time` still
+// holds the key before it; every other channel is continuous there and takes its value at `time`.
+// The first frame of a baked step edge (BakedClip::before_step).
+void sample_clip_before(const Model& model, int clip, float time, std::span<Transform> locals);
+
 // Model-space matrices of every node from their local transforms (sizes == nodes.size()).
 void world_matrices(const Model& model, std::span<const Transform> locals,
                     std::span<glm::mat4> world);

@@ -136,15 +136,42 @@ struct PosturePair {
 };
 constexpr int kPosturePairs = 4;
 
+// Where a clip time falls among a baked clip's frames: the per-frame paths show frame f0's pose
+// blended towards frame f1's by `blend` (palette rows on the GPU and the CPU, posture distances,
+// bounds and the root's travel alike).
+struct BakedSample {
+  int f0 = 0, f1 = 0;  // frames of the clip (add BakedClip::first_row for palette rows)
+  float blend = 0.0f;  // [0, 1], f0 -> f1
+};
+
 // A clip resampled at a fixed rate for the per-frame paths (GPU skinning reads the palette
 // rows; the cache tests read the posture distances and nothing else).
+//
+// A blend of two frames spreads a STEP channel's jump over the frame around its key (a held pose
+// blended into the next for 1/60 s). So each key at which a STEP channel's value changes gets frames
+// of its own at the key's time: where the clip mixes STEP with LINEAR or CUBICSPLINE channels, the
+// pose just before the key (the STEP channels still at their previous key, the others at the key's
+// time), then the pose at it (not where a grid frame falls on that very time). A time between frames
+// blends the two around it, which then hold every STEP channel (both frames agree on it) and jump
+// exactly at its key, while the other channels go on blending between frames. A clip whose channels
+// are all STEP (`stepped`) never moves between keys: its blend is 0 (the frame at or before the
+// time), and only a key between grid frames gets a frame, the pose at it.
 struct BakedClip {
-  int frame_count = 0;      // >= 1; frame f is at time min(f / rate, duration)
-  float rate = 60.0f;       // frames per second
-  // Every channel of the clip is STEP: a time between two frames takes the earlier frame instead of a
-  // blend of both (a held pose blended into the next for one frame, 1/60 s, otherwise). A STEP key
-  // between two frames is then shown from the next frame on, at most one frame late.
+  int frame_count = 0;  // >= 1: the grid frames (grid.size()) and the step edges' frames
+  float rate = 60.0f;   // grid frames per second: grid frame g is at time min(g / rate, duration)
+  // Per frame, the clip time it shows (seconds, non-decreasing; the two frames of a step edge share
+  // their key's time) and whether it shows the pose just before that time (sample_clip_before; the
+  // first frame of an edge) rather than at it (sample_clip).
+  std::vector<float> times;
+  std::vector<std::uint8_t> before_step;
+  std::vector<int> grid;  // frame index of each grid frame, increasing
+  // Every channel of the clip is STEP: blend always 0.
   bool stepped = false;
+  // The frames around clip time `time` (seconds, in [0, duration]; clip_time gives it; NaN or
+  // negative: 0): f0 the last frame at or before it (of an edge, the pose at the key), f1 the next
+  // (f0 at the last frame). A clip without edges takes the grid alone, blend = time * rate - f0 as
+  // ever; with edges, a few comparisons more where they are near. Allocates nothing.
+  BakedSample sample(float time) const;
   std::uint32_t first_row = 0;  // first row of this clip in Model::baked_palette()
   // kPosturePairs squared distances per frame (model space, m^2).
   std::vector<std::array<float, kPosturePairs>> posture;
@@ -155,7 +182,7 @@ struct BakedClip {
   std::vector<glm::vec2> root_offset;
   // The speed the clip walks at (model units per second), measured from its poses: how fast the
   // body moves horizontally over its supporting foot (the lowest end joint, where it is within 15 %
-  // of the height of the pose's lowest point), the median over the frames. An in-place walk's foot
+  // of the height of the pose's lowest point), the median over the grid frames. An in-place walk's foot
   // slides back at that speed, a clip with root motion moves the body over a foot that stays put.
   // 0 where the clip does not walk (no supporting foot in a quarter of the frames, or the body
   // moving over it at under 5 % of the height per second).
