@@ -1,7 +1,9 @@
 // The models the flow test bed uses by default: the built-in body's LOD set and seeded variants of
-// it, built once into DIR (each reused when it is already there and newer than the program).
+// it, built once into DIR (each reused while it is the file flow wrote there with this program).
 #include <cstdint>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -15,19 +17,46 @@ namespace bb::cli {
 
 namespace {
 
-// DIR/<body.name>.glb, built unless it is there and newer than the program.
+// What flow remembers of a LOD set it wrote: DIR/.<name>.glb.flow, "<bytes> <mtime ns>" of the file
+// as written. A file that is not the one flow wrote (a user's `bodybuilder build` of another body of the
+// same name, an older program's) is built again rather than drawn as the built-in crowd.
+std::string flow_stamp(const std::string& path) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const auto size = fs::file_size(path, ec);
+  if (ec) return {};
+  const auto time = fs::last_write_time(path, ec);
+  if (ec) return {};
+  return std::to_string(size) + " " + std::to_string(time.time_since_epoch().count()) + "\n";
+}
+
+std::string stamp_path(const std::string& path) {
+  namespace fs = std::filesystem;
+  const fs::path p(path);
+  return (p.parent_path() / ("." + p.filename().string() + ".flow")).string();
+}
+
+// DIR/<body.name>.glb, built unless flow wrote it there with this program (newer than the program,
+// and unchanged since: its stamp).
 Result<std::string> built_model(const std::string& dir, const modeler::Body& body) {
   namespace fs = std::filesystem;
   std::string path = (fs::path(dir) / (body.name + ".glb")).string();
   std::error_code ec;
-  if (fs::exists(path, ec) && !ec) {
+  if (fs::is_regular_file(path, ec) && !ec) {
     auto self = fs::last_write_time("/proc/self/exe", ec);
-    if (!ec && fs::last_write_time(path, ec) > self) return path;
+    if (!ec && fs::last_write_time(path, ec) > self && !ec) {
+      std::ifstream in(stamp_path(path), std::ios::binary);
+      std::string kept((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+      const std::string now = flow_stamp(path);
+      if (!now.empty() && kept == now) return path;
+    }
   }
   auto built = exporter::build_body(body);
   if (!built) return built.error();
   auto st = write_atomic(path, std::string_view(reinterpret_cast<const char*>(built->glb.data()), built->glb.size()));
   if (!st) return st.error();
+  // The stamp is only a cache note: without it the file is built again next time.
+  if (const std::string stamp = flow_stamp(path); !stamp.empty()) (void)write_atomic(stamp_path(path), stamp);
   return path;
 }
 

@@ -1,6 +1,7 @@
 // `bodybuilder flow` and `bodybuilder demo` as a user runs them (headless EGL; llvmpipe here).
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -666,6 +667,42 @@ TEST(FlowCli, DefaultCrowdIsTheBodyAndItsVariants) {
     EXPECT_EQ(w["matched"], "measured");
     EXPECT_GT(w["speed"].get<double>(), 0);
   }
+}
+
+// The default crowd's LOD sets are built once into DIR and reused; a file there that flow did not write
+// (a user's `bodybuilder build` of another body of the same name) is built again, not drawn as the crowd.
+TEST(FlowCli, TheCrowdsLodSetsAreReusedOnlyAsFlowWroteThem) {
+  fs::path d = fs::temp_directory_path() / "bb_flow_cli_reuse";
+  fs::remove_all(d);
+  const std::string args = "flow --variants 1 --humans 2 --frames 1 --size 160x128 --json -o " + d.string();
+  Out first = run(args);
+  if (first.text.find("EGL") != std::string::npos && first.status != 0) GTEST_SKIP() << "no headless OpenGL: " << first.text;
+  ASSERT_EQ(first.status, 0) << first.text;
+  const fs::path body = d / "default.glb", variant = d / "default_v1.glb";
+  auto bytes = [](const fs::path& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  const std::string built = bytes(body);
+  const auto written = fs::last_write_time(body);
+  ASSERT_FALSE(built.empty());
+  Out again = run(args);
+  ASSERT_EQ(again.status, 0) << again.text;
+  EXPECT_EQ(fs::last_write_time(body), written);  // reused, not written again
+  // Another LOD set put in its place: built again.
+  fs::copy_file(variant, body, fs::copy_options::overwrite_existing);
+  ASSERT_NE(bytes(body), built);
+  Out replaced = run(args);
+  ASSERT_EQ(replaced.status, 0) << replaced.text;
+  EXPECT_EQ(bytes(body), built);
+  // A stamp that no longer matches (the file touched since): built again too.
+  fs::last_write_time(body, fs::last_write_time(body) + std::chrono::seconds(5));
+  const auto touched = fs::last_write_time(body);
+  Out retouched = run(args);
+  ASSERT_EQ(retouched.status, 0) << retouched.text;
+  EXPECT_NE(fs::last_write_time(body), touched);
+  EXPECT_EQ(bytes(body), built);
+  fs::remove_all(d);
 }
 
 // --clip picks every model's clip by name, its rate matched to the walkers' speed as measured from
