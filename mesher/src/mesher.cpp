@@ -18,6 +18,7 @@
 #include <cstring>
 #include <numeric>
 #include <random>
+#include <span>
 #include <thread>
 #include <unordered_map>
 
@@ -491,12 +492,25 @@ PieceMesh build_piece(const PieceSpec& spec, const PartDensity& density, int cup
   return mesh;
 }
 
-// Skin weights: inverse fourth power of the distance to the region's bones, at most four,
-// normalized; smooth across joints because neighbouring bones are equally near there.
+// At most four influences, continuous in the candidates' weights: the four strongest less the
+// fifth's weight, so a joint fades out as it drops to fifth place. Cut to four outright, the
+// weights jumped where the 4th and 5th swap: on a belly edited to 0.3 m five joints (two hips,
+// three vertebrae) weigh 0.13-0.3 each, neighbouring vertices kept different fours, and in a
+// stride the belly folded along that line, a dark sliver
+// (Skinning.HugeBellyDoesNotFoldWhenTheHipsSwing). `w`: weights, descending; returns how many
+// to keep (at most 4, the first ones), lowered in place. A 4th tied with the 5th comes out 0.
+size_t keep_four(std::span<float> w) {
+  if (w.size() > 4 && w[0] > w[4])
+    for (size_t k = 0; k < 4; ++k) w[k] -= w[4];
+  return std::min<size_t>(4, w.size());
+}
+
+// Skin weights: inverse fourth power of the distance to the region's bones, at most four
+// (keep_four), normalized; smooth across joints because neighbouring bones are equally near there.
 void skin_vertex(const glm::vec3& p, const std::vector<Bone>& bones, const std::vector<int>& candidates,
                  glm::u16vec4* joints, glm::vec4* weights) {
   struct W { float w; int joint; };
-  W best[4] = {{0, 0}, {0, 0}, {0, 0}, {0, 0}};
+  W best[5] = {{0, 0}, {0, 0}, {0, 0}, {0, 0}, {0, 0}};
   std::unordered_map<int, float> per_joint;
   for (int b : candidates) {
     const Bone& bone = bones[b];
@@ -511,16 +525,19 @@ void skin_vertex(const glm::vec3& p, const std::vector<Bone>& bones, const std::
   }
   for (const auto& [j, w] : per_joint) {
     W cand{w, j};
-    for (int k = 0; k < 4; ++k)
+    for (int k = 0; k < 5; ++k)
       if (cand.w > best[k].w) std::swap(cand, best[k]);
   }
+  float w[5];
+  for (int k = 0; k < 5; ++k) w[k] = best[k].w;
+  keep_four(w);
   float sum = 0;
-  for (auto& b : best) sum += b.w;
+  for (int k = 0; k < 4; ++k) sum += (best[k].w = w[k]);
   // Drop influences under 1 %, renormalize.
   float kept = 0;
-  for (auto& b : best) {
-    if (b.w < 0.01f * sum) b = {0, 0};
-    kept += b.w;
+  for (int k = 0; k < 4; ++k) {
+    if (best[k].w < 0.01f * sum) best[k] = {0, 0};
+    kept += best[k].w;
   }
   for (int k = 0; k < 4; ++k) {
     (*joints)[k] = uint16_t(best[k].w > 0 ? best[k].joint : 0);
@@ -1247,7 +1264,11 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
         std::vector<std::pair<float, int>> w;
         for (auto& [j, x] : acc) w.push_back({x, j});
         std::sort(w.rbegin(), w.rend());
-        w.resize(std::min<size_t>(4, w.size()));
+        std::vector<float> ws(w.size());
+        for (size_t k = 0; k < w.size(); ++k) ws[k] = w[k].first;
+        w.resize(keep_four(ws));
+        for (size_t k = 0; k < w.size(); ++k) w[k].first = ws[k];
+        while (w.back().first <= 0) w.pop_back();  // a 4th tied with the 5th
         float sum = 0;
         for (auto& x : w) sum += x.first;
         for (size_t k = 0; k < 4; ++k) {
