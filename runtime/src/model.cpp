@@ -25,19 +25,10 @@ float Model::clip_duration(int clip) const {
   return clip >= 0 && clip < static_cast<int>(clips.size()) ? clips[clip].duration : 0.0f;
 }
 
-BakedSample BakedClip::sample(float time) const {
+BakedSample BakedClip::sample_edges(float time) const {
   BakedSample s;
-  if (frame_count <= 1) return s;
-  if (!(time > 0.0f)) time = 0.0f;  // NaN too
-  // The grid frame at or before `time`.
+  // The grid frame at or before `time`, then over the edges' frames to the last frame at or before it.
   const float fx = std::min(time * rate, static_cast<float>(grid.size() - 1));
-  if (grid.size() == times.size()) {  // no step edges: the grid alone, in frame units
-    s.f0 = static_cast<int>(fx);
-    s.f1 = std::min(s.f0 + 1, frame_count - 1);
-    if (!stepped && s.f1 > s.f0) s.blend = fx - static_cast<float>(s.f0);
-    return s;
-  }
-  // Then over the edges' frames to the last frame at or before it.
   int f = grid[static_cast<std::size_t>(fx)];
   while (f > 0 && times[f] > time) --f;
   while (f + 1 < frame_count && times[f + 1] <= time) ++f;

@@ -6,6 +6,7 @@
 // No GL or tinygltf type appears here.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -171,7 +172,19 @@ struct BakedClip {
   // negative: 0): f0 the last frame at or before it (of an edge, the pose at the key), f1 the next
   // (f0 at the last frame). A clip without edges takes the grid alone, blend = time * rate - f0 as
   // ever; with edges, a few comparisons more where they are near. Allocates nothing.
-  BakedSample sample(float time) const;
+  BakedSample sample(float time) const {
+    BakedSample s;
+    if (frame_count <= 1) return s;
+    if (!(time > 0.0f)) time = 0.0f;  // NaN too
+    if (grid.size() != times.size()) return sample_edges(time);
+    // No step edges: the grid alone, in frame units (inline: the planner calls this per character).
+    const float fx = std::min(time * rate, static_cast<float>(grid.size() - 1));
+    s.f0 = static_cast<int>(fx);
+    s.f1 = std::min(s.f0 + 1, frame_count - 1);
+    if (!stepped && s.f1 > s.f0) s.blend = fx - static_cast<float>(s.f0);
+    return s;
+  }
+  BakedSample sample_edges(float time) const;  // sample() of a clip with step edges, time >= 0
   std::uint32_t first_row = 0;  // first row of this clip in Model::baked_palette()
   // kPosturePairs squared distances per frame (model space, m^2).
   std::vector<std::array<float, kPosturePairs>> posture;
