@@ -3,12 +3,15 @@
 #pragma once
 
 #include <atomic>
+#include <cerrno>
+#include <cstdlib>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
 #include <string_view>
+#include <system_error>
 #include <unistd.h>
 
 #include "bb/result.h"
@@ -106,6 +109,15 @@ inline Status check_output_dir(const std::string& dir) {
   if (!fs::is_directory(p, ec))
     return Error{dir, "", "cannot be the output folder: " + p.string() + " is a file, not a folder"};
   if (::access(p.c_str(), W_OK | X_OK) != 0) return Error{dir, "", "cannot be the output folder: " + p.string() + " is not writable"};
+  // access() says yes to root almost anywhere (/proc, /sys): a folder made and removed again says
+  // whether the writes to come can happen.
+  std::string probe = (p / ".bodybuilder-probe-XXXXXX").string();
+  if (::mkdtemp(probe.data()) == nullptr) {
+    const int e = errno;
+    return Error{dir, "", "cannot be the output folder: no folder can be made in " + p.string() + " (" +
+                                 std::generic_category().message(e) + ")"};
+  }
+  ::rmdir(probe.c_str());
   return Ok{};
 }
 

@@ -89,3 +89,16 @@ TEST(Io, OutputFilesAreCheckedBeforeAnyWork) {
   std::ofstream(d / "file") << "x";
   EXPECT_FALSE(check_output_file((d / "file" / "new.png").string()).ok());  // its folder is a file
 }
+
+// A folder the process may not make anything in is refused before any work, also where access()
+// says yes (as it does to root on /proc), and the check leaves nothing behind.
+TEST(Io, OutputFoldersAreCheckedByMakingAFolderThere) {
+  const fs::path d = fresh_dir("probe");
+  EXPECT_TRUE(bb::cli::check_output_dir((d / "a" / "b").string()).ok());
+  EXPECT_TRUE(fs::is_empty(d));  // the probe is removed, the folders to come are not made yet
+  if (!fs::is_directory("/proc/self")) GTEST_SKIP() << "no procfs here";
+  auto proc = bb::cli::check_output_dir("/proc/bb_out");
+  ASSERT_FALSE(proc.ok());
+  EXPECT_EQ(proc.error().file, "/proc/bb_out");
+  EXPECT_NE(proc.error().reason.find("/proc"), std::string::npos) << proc.error().reason;
+}
