@@ -265,7 +265,8 @@ TEST(BuildLods, HugeBellyDoesNotFoldTheTorso) {
 // hips swung as in a stride the belly folded along that line: 23-25 triangles turned over, about
 // 110 cm2 at LOD 0 (a thin dark sliver on the belly's side in the walk; none in the bind posture,
 // whose check finds no intersection). Weights now fade a joint out as it drops to fifth place:
-// 1-4 thin triangles (under 2 cm2) turn at LOD 0, none at the coarser levels.
+// 1-4 thin triangles (under 2 cm2) turned at LOD 0, none at the coarser levels; since the torso-arm
+// seams' weights ramp (the arm touches this belly), 5-9 (about 6 cm2).
 TEST(Skinning, HugeBellyDoesNotFoldWhenTheHipsSwing) {
   modeler::Body body = modeler::default_body();
   body.name = "belly_huge";
