@@ -62,10 +62,20 @@ inline std::vector<fs::path> present(const fs::path& dir, std::initializer_list<
   return out;
 }
 
-// Seeded, so that a run repeats itself. The fuzz tests' mutators derive from it.
+// BB_FUZZ_SEED when it is a positive number: mixed into every test's own seeds, so that a longer campaign
+// draws streams that CI's runs never drew (0 or unset: the tests' seeds as they are).
+inline std::uint32_t seed_offset() {
+  const char* s = std::getenv("BB_FUZZ_SEED");
+  if (s == nullptr) return 0;
+  const unsigned long v = std::strtoul(s, nullptr, 10);
+  return static_cast<std::uint32_t>(v);
+}
+
+// Seeded, so that a run repeats itself (with the same BB_FUZZ_SEED). The fuzz tests' mutators derive from it.
 class Random {
  public:
-  explicit Random(std::uint32_t seed) : rng_(seed) {}
+  explicit Random(std::uint32_t seed)
+      : rng_(seed_offset() == 0 ? seed : seed ^ (seed_offset() * 0x9E3779B9u + 0x7F4A7C15u)) {}
 
   // In [0, n); 0 when n is 0.
   std::size_t below(std::size_t n) { return n == 0 ? 0 : std::uniform_int_distribution<std::size_t>(0, n - 1)(rng_); }
@@ -313,12 +323,14 @@ bool run(const fs::path& path, const std::string& seed, int count, Mutant mutant
     if (!problem.empty()) {  // the first failing mutant of a seed is enough to look at
       const fs::path keep = path.parent_path() / ("failing_" + std::to_string(i) + "_" + name);
       write_file(keep, text);
-      ADD_FAILURE() << name << " mutant " << i << " (kept as " << keep.string() << "): " << problem;
+      ADD_FAILURE() << name << " mutant " << i << " (kept as " << keep.string() << "; BB_FUZZ_SEED=" << seed_offset()
+                    << "): " << problem;
       passed = false;
     }
   }
   std::cout << "[fuzz] " << name << ": " << accepted + rejected << " mutants, " << accepted << " accepted, "
-            << rejected << " rejected\n";
+            << rejected << " rejected" << (seed_offset() ? ", BB_FUZZ_SEED=" + std::to_string(seed_offset()) : std::string())
+            << "\n";
   for (const std::string& s : samples) std::cout << "[fuzz]   e.g. " << s << "\n";
   return passed;
 }
