@@ -78,6 +78,24 @@ void expect_on_target(const std::vector<Lod>& lods) {
   EXPECT_LE(lods.back().report.triangles, 800u);
 }
 
+// Linear blend skinning of a mesh sampled in `bind` into `pose` (the runtime's way): each joint's
+// world transform in the pose times the inverse of the bind's.
+std::vector<glm::mat4> skin_matrices(const std::vector<glm::mat4>& bind_world, const std::vector<glm::mat4>& pose_world) {
+  std::vector<glm::mat4> skin(bind_world.size());
+  for (size_t j = 0; j < bind_world.size(); ++j) skin[j] = pose_world[j] * glm::inverse(bind_world[j]);
+  return skin;
+}
+
+std::vector<glm::vec3> posed_positions(const SkinnedMesh& m, const std::vector<glm::mat4>& skin) {
+  std::vector<glm::vec3> posed(m.positions.size());
+  for (size_t v = 0; v < posed.size(); ++v) {
+    glm::vec4 acc(0);
+    for (int k = 0; k < 4; ++k) acc += m.weights[v][k] * (skin[m.joints[v][k]] * glm::vec4(m.positions[v], 1));
+    posed[v] = glm::vec3(acc);
+  }
+  return posed;
+}
+
 TEST(BuildLods, DefaultBodyChainIsCleanAndAccurate) {
   const modeler::Body& body = modeler::default_body();
   auto lods = build_lods(body);
@@ -192,16 +210,10 @@ TEST(Skinning, WalkPostureKeepsTheSkinTogether) {
   }
   sk.clamp(walk);
   auto wb = sk.world_transforms(bind), wp = sk.world_transforms(walk);
-  std::vector<glm::mat4> skin(wb.size());
-  for (size_t j = 0; j < wb.size(); ++j) skin[j] = wp[j] * glm::inverse(wb[j]);
+  const std::vector<glm::mat4> skin = skin_matrices(wb, wp);
   for (const Lod& lod : *lods) {
     const SkinnedMesh& m = lod.mesh;
-    std::vector<glm::vec3> posed(m.positions.size());
-    for (size_t v = 0; v < posed.size(); ++v) {
-      glm::vec4 acc(0);
-      for (int k = 0; k < 4; ++k) acc += m.weights[v][k] * (skin[m.joints[v][k]] * glm::vec4(m.positions[v], 1));
-      posed[v] = glm::vec3(acc);
-    }
+    const std::vector<glm::vec3> posed = posed_positions(m, skin);
     // Stretch in metres beyond what a 3x stretch or 1/3 shrink of an edge would give: tiny
     // edges (union slivers) may change a lot relatively, what matters is how far apart
     // neighbours end up.
@@ -289,16 +301,10 @@ TEST(Skinning, HugeBellyDoesNotFoldWhenTheHipsSwing) {
     stride[sk.find_dof("r_hip.flexion")] = swing > 0 ? -0.3f : 0.5f;
     sk.clamp(stride);
     const auto wp = sk.world_transforms(stride);
-    std::vector<glm::mat4> skin(wb.size());
-    for (size_t j = 0; j < wb.size(); ++j) skin[j] = wp[j] * glm::inverse(wb[j]);
+    const std::vector<glm::mat4> skin = skin_matrices(wb, wp);
     for (const Lod& lod : *lods) {
       const SkinnedMesh& m = lod.mesh;
-      std::vector<glm::vec3> posed(m.positions.size());
-      for (size_t v = 0; v < posed.size(); ++v) {
-        glm::vec4 acc(0);
-        for (int k = 0; k < 4; ++k) acc += m.weights[v][k] * (skin[m.joints[v][k]] * glm::vec4(m.positions[v], 1));
-        posed[v] = glm::vec3(acc);
-      }
+      const std::vector<glm::vec3> posed = posed_positions(m, skin);
       // Belly triangles (bind posture: in front of the body, between the hips and the chest) whose
       // posed normal points against their bind normal.
       size_t turned = 0;
@@ -348,16 +354,10 @@ TEST(Skinning, ShouldersDoNotFoldWhenTheArmsHang) {
     }
     sk.clamp(walk);
     const auto wp = sk.world_transforms(walk);
-    std::vector<glm::mat4> skin(wb.size());
-    for (size_t j = 0; j < wb.size(); ++j) skin[j] = wp[j] * glm::inverse(wb[j]);
+    const std::vector<glm::mat4> skin = skin_matrices(wb, wp);
     for (const Lod& lod : *lods) {
       const SkinnedMesh& m = lod.mesh;
-      std::vector<glm::vec3> posed(m.positions.size());
-      for (size_t v = 0; v < posed.size(); ++v) {
-        glm::vec4 acc(0);
-        for (int k = 0; k < 4; ++k) acc += m.weights[v][k] * (skin[m.joints[v][k]] * glm::vec4(m.positions[v], 1));
-        posed[v] = glm::vec3(acc);
-      }
+      const std::vector<glm::vec3> posed = posed_positions(m, skin);
       const size_t nt = m.indices.size() / 3;
       std::vector<char> turned(nt), shoulder(nt);
       double turned_m2 = 0;

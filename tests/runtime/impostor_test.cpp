@@ -18,6 +18,7 @@
 #include "bb/runtime/animation.h"
 #include "bb/runtime/crowd.h"
 #include "bb/runtime/impostor.h"
+#include "step_clip_model.h"
 
 namespace bb::runtime {
 namespace {
@@ -1372,43 +1373,13 @@ TEST(FramePlanner, SteppedClipsHoldTheirPosesBetweenBakedFrames) {
   EXPECT_NEAR(blend_at(Interpolation::kLinear, 0.495f), 0.7f, 1e-3f);  // 0.495 s is frame 29.7
 }
 
-// A root and two joints beside it, one moved along x by a STEP channel (0 until 0.25 s, 1 until
-// 0.51 s, then 2), the other by a LINEAR one (x = t over the 1 s clip), a vertex on each: the clip
-// mixes STEP with LINEAR.
-Model step_and_linear_model() {
-  Model m;
-  m.nodes = {Node{"root", -1, {}}, Node{"held", 0, {}}, Node{"slid", 0, {}}};
-  m.palette = {PaletteEntry{0, glm::mat4(1)}, PaletteEntry{1, glm::mat4(1)}, PaletteEntry{2, glm::mat4(1)}};
-  MeshLod lod;
-  lod.vertices.resize(3);
-  lod.vertices[0].position = {0, 1, 0};
-  lod.vertices[1].joints = glm::u16vec4(1, 0, 0, 0);
-  lod.vertices[2].joints = glm::u16vec4(2, 0, 0, 0);
-  lod.indices = {0, 1, 2};
-  lod.primitives = {Primitive{0, 3, 0}};
-  m.lods = {lod};
-  m.materials = {Material{}};
-  Channel held;
-  held.node = 1;
-  held.interpolation = Interpolation::kStep;
-  held.times = {0.0f, 0.25f, 0.51f};  // 0.25 s is grid frame 15, 0.51 s lies between frames 30 and 31
-  held.values = {{0, 0, 0, 0}, {1, 0, 0, 0}, {2, 0, 0, 0}};
-  Channel slid;
-  slid.node = 2;
-  slid.times = {0.0f, 1.0f};
-  slid.values = {{0, 0, 0, 0}, {1, 0, 0, 0}};
-  m.clips = {Clip{"mixed", 1.0f, {held, slid}}};
-  m.bake(60.0f);
-  return m;
-}
-
 // In a clip that mixes STEP and LINEAR channels, the STEP joint holds its key until the next and
 // jumps exactly at it, whatever time the game plays between the 60 Hz baked frames, while the LINEAR
 // joint goes on interpolating. Read as the GPU skins: the instance's two palette rows and blend.
 // (Each frame's palette used to be blended whole: 0.505 s, frame 30.3, drew the STEP joint at x = 0.3,
 // and it reached 1 only at frame 31, 0.5167 s.)
 TEST(FramePlanner, MixedStepAndLinearChannelsStepExactlyAtTheirKeys) {
-  const Model m = step_and_linear_model();
+  const Model m = step_and_slide(Interpolation::kLinear);
   EXPECT_FALSE(m.baked_clips()[0].stepped);
   Crowd crowd(m);
   crowd.add(Character{});

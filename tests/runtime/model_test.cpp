@@ -15,6 +15,7 @@
 
 #include "bb/runtime/animation.h"
 #include "bb/runtime/model.h"
+#include "step_clip_model.h"
 
 namespace bb::runtime {
 namespace {
@@ -95,38 +96,6 @@ TEST(SampleChannel, SlerpTakesShortestPath) {
   EXPECT_NEAR(std::abs(q.z), std::sin(glm::radians(22.5f)), 1e-6f);
   EXPECT_NEAR(std::abs(q.w), std::cos(glm::radians(22.5f)), 1e-6f);
   EXPECT_GT(q.z * q.w, 0.0f);  // the same sense as +90 about Z, not the long way round
-}
-
-// A root and two joints beside it, one moved along x by a STEP channel (0 until 0.25 s, 1 until
-// 0.51 s, then 2), the other by a channel of `slid` interpolation (x = t over the 1 s clip), a
-// vertex on each.
-Model step_and_slide(Interpolation slid_interpolation) {
-  Model m;
-  m.nodes = {Node{"root", -1, {}}, Node{"held", 0, {}}, Node{"slid", 0, {}}};
-  m.palette = {PaletteEntry{0, glm::mat4(1)}, PaletteEntry{1, glm::mat4(1)}, PaletteEntry{2, glm::mat4(1)}};
-  MeshLod lod;
-  lod.vertices.resize(3);
-  lod.vertices[0].position = {0, 1, 0};
-  lod.vertices[1].joints = glm::u16vec4(1, 0, 0, 0);
-  lod.vertices[2].joints = glm::u16vec4(2, 0, 0, 0);
-  lod.indices = {0, 1, 2};
-  lod.primitives = {Primitive{0, 3, 0}};
-  m.lods = {lod};
-  m.materials = {Material{}};
-  Channel held;
-  held.node = 1;
-  held.interpolation = Interpolation::kStep;
-  held.times = {0.0f, 0.25f, 0.51f};  // 0.25 s is grid frame 15, 0.51 s lies between frames 30 and 31
-  held.values = {{0, 0, 0, 0}, {1, 0, 0, 0}, {2, 0, 0, 0}};
-  Channel slid;
-  slid.node = 2;
-  slid.interpolation = slid_interpolation;
-  slid.times = {0.0f, 1.0f};
-  slid.values = {{0, 0, 0, 0}, {1, 0, 0, 0}};
-  if (slid_interpolation == Interpolation::kCubicSpline) slid.values = {{}, {0, 0, 0, 0}, {}, {}, {1, 0, 0, 0}, {}};
-  m.clips = {Clip{"mixed", 1.0f, {held, slid}}};
-  m.bake(60.0f);
-  return m;
 }
 
 // Just before a STEP key the channel still holds the key before it; other channels are continuous.
