@@ -507,6 +507,26 @@ size_t keep_four(std::span<float> w) {
   return std::min<size_t>(4, w.size());
 }
 
+// A vertex's influences from candidate (weight, joint) pairs, strongest first: at most four
+// (keep_four), those at 0 or under `floor` of their sum dropped, normalized to a sum of exactly one
+// in float.
+void store_influences(std::vector<std::pair<float, int>>& w, float floor, glm::u16vec4* joints, glm::vec4* weights) {
+  std::vector<float> x(w.size());
+  for (size_t k = 0; k < w.size(); ++k) x[k] = w[k].first;
+  w.resize(keep_four(x));
+  float sum = 0;
+  for (size_t k = 0; k < w.size(); ++k) sum += (w[k].first = x[k]);
+  while (!w.empty() && (w.back().first <= 0 || w.back().first < floor * sum)) w.pop_back();  // the weakest last
+  float kept = 0;
+  for (const auto& q : w) kept += q.first;
+  for (size_t k = 0; k < 4; ++k) {
+    (*joints)[k] = uint16_t(k < w.size() ? w[k].second : 0);
+    (*weights)[k] = k < w.size() ? w[k].first / kept : 0.0f;
+  }
+  const float s = (*weights)[0] + (*weights)[1] + (*weights)[2] + (*weights)[3];
+  (*weights)[0] += 1.0f - s;
+}
+
 // Skin weights: inverse fourth power of the distance to the region's bones, at most four
 // (keep_four), normalized; smooth across joints because neighbouring bones are equally near there.
 void skin_vertex(const glm::vec3& p, const std::vector<Bone>& bones, const std::vector<int>& candidates,
@@ -530,24 +550,9 @@ void skin_vertex(const glm::vec3& p, const std::vector<Bone>& bones, const std::
     for (int k = 0; k < 5; ++k)
       if (cand.w > best[k].w) std::swap(cand, best[k]);
   }
-  float w[5];
-  for (int k = 0; k < 5; ++k) w[k] = best[k].w;
-  keep_four(w);
-  float sum = 0;
-  for (int k = 0; k < 4; ++k) sum += (best[k].w = w[k]);
-  // Drop influences under 1 %, renormalize.
-  float kept = 0;
-  for (int k = 0; k < 4; ++k) {
-    if (best[k].w < 0.01f * sum) best[k] = {0, 0};
-    kept += best[k].w;
-  }
-  for (int k = 0; k < 4; ++k) {
-    (*joints)[k] = uint16_t(best[k].w > 0 ? best[k].joint : 0);
-    (*weights)[k] = best[k].w / kept;
-  }
-  // Exact sum of one in float.
-  float s = (*weights)[0] + (*weights)[1] + (*weights)[2] + (*weights)[3];
-  (*weights)[0] += 1.0f - s;
+  std::vector<std::pair<float, int>> w;
+  for (const W& b : best) w.push_back({b.w, b.joint});
+  store_influences(w, 0.01f, joints, weights);  // influences under 1 % dropped
 }
 
 // Half width of the band over which skin weights ramp across a seam between the torso and an arm
@@ -657,21 +662,7 @@ void smooth_seam_weights(SkinnedMesh& mesh, const std::vector<int8_t>& region, f
     for (size_t c = 0; c < nc; ++c)
       if (w[row[i] * nc + c] > 0) ws.push_back({w[row[i] * nc + c], columns[c]});
     std::sort(ws.rbegin(), ws.rend());
-    std::vector<float> x(ws.size());
-    for (size_t k = 0; k < ws.size(); ++k) x[k] = ws[k].first;
-    ws.resize(keep_four(x));
-    float sum = 0;
-    for (size_t k = 0; k < ws.size(); ++k) sum += (ws[k].first = x[k]);
-    float kept = 0;  // influences under 1 % dropped, as skin_vertex does
-    for (auto& q : ws) kept += q.first >= 0.01f * sum ? q.first : 0.0f;
-    for (size_t k = 0, o = 0; k < 4; ++k) {
-      while (o < ws.size() && ws[o].first < 0.01f * sum) ++o;
-      mesh.joints[i][k] = uint16_t(o < ws.size() ? ws[o].second : 0);
-      mesh.weights[i][k] = o < ws.size() ? ws[o].first / kept : 0.0f;
-      ++o;
-    }
-    float s = mesh.weights[i][0] + mesh.weights[i][1] + mesh.weights[i][2] + mesh.weights[i][3];
-    mesh.weights[i][0] += 1.0f - s;
+    store_influences(ws, 0.01f, &mesh.joints[i], &mesh.weights[i]);  // as skin_vertex does
   }
 }
 
@@ -1393,19 +1384,7 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
         std::vector<std::pair<float, int>> w;
         for (auto& [j, x] : acc) w.push_back({x, j});
         std::sort(w.rbegin(), w.rend());
-        std::vector<float> ws(w.size());
-        for (size_t k = 0; k < w.size(); ++k) ws[k] = w[k].first;
-        w.resize(keep_four(ws));
-        for (size_t k = 0; k < w.size(); ++k) w[k].first = ws[k];
-        while (w.back().first <= 0) w.pop_back();  // a 4th tied with the 5th
-        float sum = 0;
-        for (auto& x : w) sum += x.first;
-        for (size_t k = 0; k < 4; ++k) {
-          mesh.joints[i][k] = uint16_t(k < w.size() ? w[k].second : 0);
-          mesh.weights[i][k] = k < w.size() ? w[k].first / sum : 0.0f;
-        }
-        float s = mesh.weights[i][0] + mesh.weights[i][1] + mesh.weights[i][2] + mesh.weights[i][3];
-        mesh.weights[i][0] += 1.0f - s;
+        store_influences(w, 0.0f, &mesh.joints[i], &mesh.weights[i]);
         known[i] = 2;
       }
       for (auto& k : known)
