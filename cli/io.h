@@ -108,9 +108,8 @@ inline Status check_output_dir(const std::string& dir) {
   while (!fs::exists(p, ec) && p.has_parent_path() && p.parent_path() != p) p = p.parent_path();
   if (!fs::is_directory(p, ec))
     return Error{dir, "", "cannot be the output folder: " + p.string() + " is a file, not a folder"};
-  if (::access(p.c_str(), W_OK | X_OK) != 0) return Error{dir, "", "cannot be the output folder: " + p.string() + " is not writable"};
-  // access() says yes to root almost anywhere (/proc, /sys): a folder made and removed again says
-  // whether the writes to come can happen.
+  // A folder made and removed again says whether the writes to come can happen (access() says yes to
+  // root almost anywhere, /proc and /sys too).
   std::string probe = (p / ".bodybuilder-probe-XXXXXX").string();
   if (::mkdtemp(probe.data()) == nullptr) {
     const int e = errno;
