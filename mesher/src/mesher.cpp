@@ -562,12 +562,12 @@ void skin_vertex(const glm::vec3& p, const std::vector<Bone>& bones, const std::
 // wider band); a band of 1.5-3 arm ring spacings (up to 27 cm at LOD 3) made LOD 3 6x worse.
 constexpr float kSeamBlend = 0.10f;
 
-// Each piece's vertices weigh only their own region's bones, so where the union joins an arm to
+// Each piece's vertices weigh only their own region's bones, so where the union joins a limb to
 // the torso the weights jumped: at the top of the shoulder a torso vertex all sternoclavicular,
 // the arm's vertex 0.3 mm away three quarters shoulder. In the walk the arm hangs 36 deg below the
 // bind posture's 45, the two sides parted and the skin folded between them: dark triangles at the
 // front of the armpits and a stepped outline over the shoulders
-// (Skinning.ShouldersDoNotFoldWhenTheArmsHang). Within `band` (metres along the edges) of such a
+// (Skinning.ShouldersDoNotFoldWhenTheArmsHang); between the thighs likewise. Within `band` (metres along the edges) of such a
 // seam (below; `region` -1: a vertex the union or the crease fitting made) the weights become the harmonic interpolation of those at the band's edge (Gauss-Seidel,
 // uniform weights), so they ramp across the seam; then at most four (keep_four), normalized.
 void smooth_seam_weights(SkinnedMesh& mesh, const std::vector<int8_t>& region, float band) {
@@ -602,12 +602,13 @@ void smooth_seam_weights(SkinnedMesh& mesh, const std::vector<int8_t>& region, f
   for (size_t i = 0; i < nv; ++i)
     if (region[i] >= kArmL && region[i] <= kLegR) dist[i] = 0, limb[i] = region[i], queue.push({0.0f, uint32_t(i)});
   spread(std::numeric_limits<float>::infinity());
-  // Seams between the torso and an arm: a made vertex of an arm, a torso vertex next to an arm's
+  // Seams between the torso and a limb: a made vertex of a limb, a torso vertex next to a limb's
   // and the other way (vertices merely next to a made one are not: on the coarsest level that
-  // would free a whole ring 18 cm from the seam). Not the legs: the torso weighs the hips and the
-  // legs the sacrum already, and a belly edited to 0.3 m folded where its underside ramped to
-  // the thighs (Skinning.HugeBellyDoesNotFoldWhenTheHipsSwing).
-  auto arm = [](int r) { return r == kArmL || r == kArmR; };
+  // would free a whole ring 18 cm from the seam). The legs' too since the crease fitting's vertices
+  // are skinned by their region: before, a belly edited to 0.3 m folded where its underside ramped
+  // to the thighs (Skinning.HugeBellyDoesNotFoldWhenTheHipsSwing); now the groin folds half as much
+  // in a stride (Skinning.GroinDoesNotFoldInAStride).
+  auto arm = [](int r) { return r == kArmL || r == kArmR || r == kLegL || r == kLegR; };
   std::fill(dist.begin(), dist.end(), std::numeric_limits<float>::infinity());
   for (size_t i = 0; i < nv; ++i) {
     bool seam = region[i] < 0 && arm(limb[i]);
