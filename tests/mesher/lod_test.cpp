@@ -515,13 +515,14 @@ TEST(BuildLods, CoarseLevelsFollowTheSkinWhereTheArmsJoinTheTorso) {
     std::printf("lod %d: shoulders and armpits %zu points, distance to the skin mean %.2f mm, worst %.2f mm\n",
                 lod.report.level, n, 1000 * sum / n, 1000 * worst);
     // Measured, mean / worst: LOD 0 0.85 / 2.8 mm; LOD 1 2.30 / 18.7 mm before its crease fitting,
-    // 1.81 / 5.4 after; LOD 2 4.56 / 31.7 before, 3.93 / 27.9 after (what is left is in front of the
-    // left armpit, where moving the facets farther onto the skin left a bright sliver).
+    // 1.81 / 5.4 after; LOD 2 4.56 / 31.7 before, 4.29 / 21.5 after (fitted only beyond 1.2 % of the
+    // height; at 0.5 %, 3.93 / 27.9, and spikes in the armpits of two seeded variants).
     const float mean = sum / n;
     if (lod.report.level == 0) EXPECT_LT(worst, 0.004f);
     if (lod.report.level == 1) EXPECT_LT(worst, 0.008f);
     if (lod.report.level == 1) EXPECT_LT(mean, 0.002f);
-    if (lod.report.level == 2) EXPECT_LT(mean, 0.0042f);
+    if (lod.report.level == 2) EXPECT_LT(worst, 0.025f);
+    if (lod.report.level == 2) EXPECT_LT(mean, 0.0045f);
   }
 }
 
