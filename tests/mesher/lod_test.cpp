@@ -79,6 +79,15 @@ void expect_on_target(const std::vector<Lod>& lods) {
   EXPECT_LE(lods.back().report.triangles, 800u);
 }
 
+// The levels without the distance measurements and the topology checks (the skinning tests'
+// setup).
+Result<std::vector<Lod>> build_lods_unmeasured(const modeler::Body& body) {
+  MesherOptions o;
+  o.error_samples = 0;
+  o.check_topology = false;
+  return build_lods(body, o);
+}
+
 // Linear blend skinning of a mesh sampled in `bind` into `pose` (the runtime's way): each joint's
 // world transform in the pose times the inverse of the bind's.
 std::vector<glm::mat4> skin_matrices(const std::vector<glm::mat4>& bind_world, const std::vector<glm::mat4>& pose_world) {
@@ -194,10 +203,7 @@ namespace {
 TEST(Skinning, WalkPostureKeepsTheSkinTogether) {
   const modeler::Body& body = modeler::default_body();
   const modeler::Skeleton& sk = *body.skeleton;
-  MesherOptions o;
-  o.error_samples = 0;
-  o.check_topology = false;
-  auto lods = build_lods(body, o);
+  auto lods = build_lods_unmeasured(body);
   ASSERT_TRUE(lods.ok()) << lods.error().message();
   modeler::Posture bind = sk.posture(body.sample_posture), walk = bind;
   const std::pair<const char*, float> bends[] = {{"l_hip.flexion", 0.5f},  {"r_hip.flexion", -0.3f},
@@ -258,10 +264,7 @@ TEST(BuildLods, HugeBellyDoesNotFoldTheTorso) {
       found = true;
     }
   ASSERT_TRUE(found);
-  MesherOptions o;
-  o.error_samples = 0;
-  o.check_topology = false;
-  auto lods = build_lods(body, o);
+  auto lods = build_lods_unmeasured(body);
   ASSERT_TRUE(lods.ok()) << lods.error().message();
   for (const Lod& l : *lods) {
     MeshCheck c = check_mesh(l.mesh.positions, l.mesh.indices, true);
@@ -291,10 +294,7 @@ TEST(Skinning, HugeBellyDoesNotFoldWhenTheHipsSwing) {
       p.center = {0.0f, 0.0f, 0.18f};
       p.radii = {0.26f, 0.2f, 0.3f};
     }
-  MesherOptions o;
-  o.error_samples = 0;
-  o.check_topology = false;
-  auto lods = build_lods(body, o);
+  auto lods = build_lods_unmeasured(body);
   ASSERT_TRUE(lods.ok()) << lods.error().message();
   const modeler::Skeleton& sk = *body.skeleton;
   const modeler::Posture bind = sk.posture(body.sample_posture);
@@ -340,10 +340,7 @@ TEST(Skinning, HugeBellyDoesNotFoldWhenTheHipsSwing) {
 TEST(Skinning, ShouldersDoNotFoldWhenTheArmsHang) {
   const modeler::Body& body = modeler::default_body();
   const modeler::Skeleton& sk = *body.skeleton;
-  MesherOptions o;
-  o.error_samples = 0;
-  o.check_topology = false;
-  auto lods = build_lods(body, o);
+  auto lods = build_lods_unmeasured(body);
   ASSERT_TRUE(lods.ok()) << lods.error().message();
   const modeler::Posture bind = sk.posture(body.sample_posture);
   const auto wb = sk.world_transforms(bind);
@@ -434,10 +431,7 @@ TEST(Skinning, ShouldersDoNotFoldWhenTheArmsHang) {
 TEST(Skinning, GroinDoesNotFoldInAStride) {
   const modeler::Body& body = modeler::default_body();
   const modeler::Skeleton& sk = *body.skeleton;
-  MesherOptions o;
-  o.error_samples = 0;
-  o.check_topology = false;
-  auto lods = build_lods(body, o);
+  auto lods = build_lods_unmeasured(body);
   ASSERT_TRUE(lods.ok()) << lods.error().message();
   const auto wb = sk.world_transforms(sk.posture(body.sample_posture));
   for (const Lod& lod : *lods) {
@@ -476,10 +470,7 @@ TEST(Skinning, GroinDoesNotFoldInAStride) {
 // centroid and the edges' midpoints of its body triangles around the shoulders and armpits.
 TEST(BuildLods, CoarseLevelsFollowTheSkinWhereTheArmsJoinTheTorso) {
   const modeler::Body& body = modeler::default_body();
-  MesherOptions o;
-  o.error_samples = 0;
-  o.check_topology = false;
-  auto lods = build_lods(body, o);
+  auto lods = build_lods_unmeasured(body);
   ASSERT_TRUE(lods.ok()) << lods.error().message();
   const modeler::ImplicitSurface skin(body, body.skeleton->posture(body.sample_posture));
   auto distance = [&](glm::vec3 x) -> float {
@@ -534,10 +525,7 @@ TEST(BuildLods, AMissingNeckIsNamed) {
   const auto before = body.primitives.size();
   std::erase_if(body.primitives, [](const auto& p) { return p.name == "neck"; });
   ASSERT_EQ(body.primitives.size() + 1, before);
-  MesherOptions o;
-  o.error_samples = 0;
-  o.check_topology = false;
-  auto lods = build_lods(body, o);
+  auto lods = build_lods_unmeasured(body);
   ASSERT_FALSE(lods.ok());
   EXPECT_EQ(lods.error().where, "no_neck: head");
   EXPECT_NE(lods.error().reason.find("its seam at the neck"), std::string::npos) << lods.error().message();
