@@ -567,9 +567,11 @@ constexpr float kSeamBlend = 0.10f;
 // the arm's vertex 0.3 mm away three quarters shoulder. In the walk the arm hangs 36 deg below the
 // bind posture's 45, the two sides parted and the skin folded between them: dark triangles at the
 // front of the armpits and a stepped outline over the shoulders
-// (Skinning.ShouldersDoNotFoldWhenTheArmsHang); between the thighs likewise. Within `band` (metres along the edges) of such a
-// seam (below; `region` -1: a vertex the union or the crease fitting made) the weights become the harmonic interpolation of those at the band's edge (Gauss-Seidel,
-// uniform weights), so they ramp across the seam; then at most four (keep_four), normalized.
+// (Skinning.ShouldersDoNotFoldWhenTheArmsHang); between the thighs likewise. Within `band`
+// (metres along the edges) of such a seam (below; `region` -1: a vertex the union or the crease
+// fitting made) the weights become the harmonic interpolation of those at the band's edge
+// (Gauss-Seidel, uniform weights), so they ramp across the seam; then at most four (keep_four),
+// normalized.
 void smooth_seam_weights(SkinnedMesh& mesh, const std::vector<int8_t>& region, float band) {
   const size_t nv = mesh.positions.size();
   std::vector<std::vector<uint32_t>> nbr(nv);
