@@ -1322,10 +1322,11 @@ Result<std::vector<Lod>> build_lods(const modeler::Body& body, const MesherOptio
     g_times.joining += since(t0);
     // The union's vertices where they were before the crease fitting moved some onto the skin: a
     // moved vertex is still its piece's and takes its attributes from there (only the vertices the
-    // fitting adds blend their neighbours').
-    std::vector<glm::vec3> unfitted = joined->positions;
+    // fitting adds blend their neighbours'). Empty on a level without fitting.
+    std::vector<glm::vec3> unfitted;
     if (d.crease_tolerance > 0) {
       t0 = Clock::now();
+      unfitted = joined->positions;
       // Extremity and seam vertices (by exact position) stay as they are.
       std::unordered_map<uint64_t, const glm::vec3*> tagged;
       for (const PieceMesh& p : pieces)
