@@ -3,6 +3,7 @@
 // Many inputs are one batch: each is reported, a failure does not stop the others, the exit
 // status is non-zero if any failed; jobs run on all cores; progress goes to stderr.
 #include <algorithm>
+#include <cmath>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -48,6 +49,7 @@ struct Job {
   std::string output, error;
   double seconds = 0;
   exporter::BuildTimes times;
+  float walk_arm_abduction_deg = 0;  // how far out the walk's arms hang (a heavy body's further)
   std::vector<mesher::LodReport> lods;
   // Levels that fail their own checks (not closed, not manifold, self-intersecting): still written,
   // and said on stderr and in --json, so that a batch of variants shows which to look at.
@@ -104,6 +106,7 @@ void run_job(Job& job, const BuildArgs& a) {
     }
   }
   job.times = built->times;
+  job.walk_arm_abduction_deg = built->walk_arm_abduction_rad * 57.29578f;
   for (const auto& l : built->input.lods) {
     const mesher::LodReport& r = l.report;
     job.lods.push_back(r);
@@ -232,6 +235,7 @@ int run(BuildArgs a) {
           lods.push_back({{"triangles", r.triangles}, {"hausdorff_rel", a.no_errors ? nlohmann::ordered_json(nullptr) : nlohmann::ordered_json(r.hausdorff_rel)}, {"closed", r.closed},
                           {"manifold", r.manifold}, {"self_intersections", r.self_intersection_count}});
         o["lods"] = lods;
+        o["walk_arm_abduction_deg"] = std::round(double(job.walk_arm_abduction_deg) * 10) / 10;
         o["warnings"] = job.warnings;
       }
       j["outputs"].push_back(o);

@@ -10,6 +10,7 @@
 
 #include "bb/decimate/extremities.h"
 #include "bb/mesher/mesh_check.h"
+#include "bb/modeler/clearance.h"
 #include "bb/modeler/implicit_surface.h"
 #include "bb/motion/walk.h"
 #include "bb/parallel.h"
@@ -244,9 +245,12 @@ Result<BuildOutput> build_body(const modeler::Body& body, const BuildOptions& op
   out.input.lods.back().texture = proxy_texture;
 
   t0 = Clock::now();
+  out.walk_arm_abduction_rad = opt.walk_arm_clearance_m < 0 ? modeler::kWalkArmAbductionRad
+                                                             : modeler::walk_arm_abduction(body, opt.walk_arm_clearance_m);
   for (float v : opt.walk_speeds) {
     motion::WalkParams wp;
     wp.speed_mps = v;
+    wp.arm_abduction_rad = out.walk_arm_abduction_rad;
     auto walk = motion::make_walk(*body.skeleton, wp);
     if (!walk) return walk.error();
     out.input.clips.push_back(std::move(*walk));

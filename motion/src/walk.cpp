@@ -106,6 +106,8 @@ Result<Clip> make_walk(const modeler::Skeleton& sk, const WalkParams& wp) {
   if (!(wp.speed_mps >= 0.3f && wp.speed_mps <= 2.5f))
     return Error{"", "speed", "walking speed must be within 0.3 .. 2.5 m/s"};
   if (!(wp.fps >= 5 && wp.fps <= 240)) return Error{"", "fps", "frame rate must be within 5 .. 240"};
+  if (!(wp.arm_abduction_rad >= 0 && wp.arm_abduction_rad <= deg(45.0f)))
+    return Error{"", "arm_abduction_rad", "the arms' abduction must be within 0 .. 45 degrees"};
   Dofs d = find(sk);
   if (!d.ok) return Error{"", "skeleton", "the walk needs the H-Anim joints and DOFs of data/skeleton.json"};
   WalkCycle cyc = walk_cycle(sk, wp.speed_mps);
@@ -155,7 +157,7 @@ Result<Clip> make_walk(const modeler::Skeleton& sk, const WalkParams& wp) {
     for (int s = 0; s < 2; ++s) {
       float cs = s == 0 ? c : -c;
       p[d.shoulder[s]] = -deg(16.0f) * scale * cs;
-      p[d.shoulder_abd[s]] = deg(9.0f);
+      p[d.shoulder_abd[s]] = wp.arm_abduction_rad;
       p[d.elbow[s]] = deg(18.0f) + deg(12.0f) * scale * (1.0f - cs) * 0.5f;
     }
     sk.clamp(p);

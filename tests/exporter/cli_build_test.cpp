@@ -49,10 +49,28 @@ TEST(CliBuild, BatchReportsEachInputAndFailsIfAnyFailed) {
     }
   }
   EXPECT_EQ(ok, 2);
+  for (const auto& e : j["outputs"]) {  // neither is broad enough to need its arms further out
+    if (e["ok"].get<bool>()) {
+      EXPECT_EQ(e["walk_arm_abduction_deg"].get<double>(), 9.0) << e.dump();
+    }
+  }
   EXPECT_TRUE(fs::exists(d / "out" / "default.glb"));
   EXPECT_TRUE(fs::exists(d / "out" / "default_v7.glb"));
   for (const auto& f : fs::directory_iterator(d / "out"))
     EXPECT_EQ(f.path().string().find(".tmp"), std::string::npos) << f.path();  // nothing half-written
+}
+
+// Seeded variant 1 is 19 % broader than the default body: at the walk's 9 degrees its upper arms
+// would sink 21 mm into its torso, so its walk holds them 19.1 degrees out (modeler::walk_arm_abduction).
+TEST(CliBuild, ABroadVariantWalksWithItsArmsFurtherOut) {
+  fs::path d = fresh_dir("broad");
+  Out o = run("build --variants 1 --seed 1 --variants-only --lods 2 --no-errors --json -o " + (d / "out").string());
+  ASSERT_EQ(o.status, 0) << o.text;
+  auto json_start = o.text.find("{\"outputs\"");
+  ASSERT_NE(json_start, std::string::npos) << o.text;
+  auto j = nlohmann::json::parse(o.text.substr(json_start, o.text.find('\n', json_start) - json_start));
+  ASSERT_EQ(j["outputs"].size(), 1u);
+  EXPECT_NEAR(j["outputs"][0]["walk_arm_abduction_deg"].get<double>(), 19.1, 0.5) << j.dump();
 }
 
 TEST(CliBuild, BadBvhAndFlagsAreClearErrors) {

@@ -93,4 +93,27 @@ TEST(Walk, BadParametersAreErrors) {
   const auto& sk = modeler::default_skeleton();
   EXPECT_FALSE(motion::make_walk(sk, {.speed_mps = 5.0f}));
   EXPECT_FALSE(motion::make_walk(sk, {.speed_mps = 1.0f, .fps = 0.0f}));
+  EXPECT_FALSE(motion::make_walk(sk, {.arm_abduction_rad = -0.1f}));
+  EXPECT_FALSE(motion::make_walk(sk, {.arm_abduction_rad = 0.8f}));
+  EXPECT_FALSE(motion::make_walk(sk, {.arm_abduction_rad = std::nanf("")}));
+}
+
+// The arms hang as far out as asked in every frame (9 degrees by default; a broad body's build asks
+// for more, modeler::walk_arm_abduction), and nothing else changes.
+TEST(Walk, ArmsHangAsFarOutAsAsked) {
+  const auto& sk = modeler::default_skeleton();
+  auto plain = motion::make_walk(sk, {});
+  auto wide = motion::make_walk(sk, {.arm_abduction_rad = 0.35f});
+  ASSERT_TRUE(plain && wide);
+  ASSERT_EQ(plain->frames.size(), wide->frames.size());
+  const int abd[2] = {sk.find_dof("l_shoulder.abduction"), sk.find_dof("r_shoulder.abduction")};
+  for (size_t f = 0; f < plain->frames.size(); ++f)
+    for (int d = 0; d < sk.dof_count(); ++d) {
+      if (d == abd[0] || d == abd[1]) {
+        EXPECT_FLOAT_EQ(plain->frames[f][d], modeler::kWalkArmAbductionRad);
+        EXPECT_FLOAT_EQ(wide->frames[f][d], 0.35f);
+      } else {
+        EXPECT_EQ(plain->frames[f][d], wide->frames[f][d]) << "frame " << f << " dof " << d;
+      }
+    }
 }

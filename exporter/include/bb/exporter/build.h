@@ -22,6 +22,11 @@ namespace bb::exporter {
 struct BuildOptions {
   int lods = 4;                              // levels, 2..8 (the default chain has 4)
   std::vector<float> walk_speeds = {1.2f};   // one baked walk clip per speed, m/s
+  // Air the walk keeps between the hanging upper arms and the torso, metres for a body 1.75 m tall
+  // (scaled by the body's height): the arms hang the walk's 9 degrees out, or further where a heavy
+  // body needs it (modeler::walk_arm_abduction; at most 30 degrees). Negative: 9 degrees for every
+  // body.
+  float walk_arm_clearance_m = 0.01f;
   std::vector<motion::Clip> extra_clips;     // imported clips (already retargeted)
   bool proxies = true;                       // textured proxies at the lowest level
   size_t lod0_extremity_triangles = 4000;    // head, hands and feet of LOD 0 (0: full resolution)
@@ -40,6 +45,7 @@ struct BuildTimes {
 
 struct BuildOutput {
   ExportInput input;               // what was written (meshes, reports, clips, textures)
+  float walk_arm_abduction_rad = 0;  // how far out the walk's arms hang
   std::vector<uint8_t> glb;        // the whole LOD set
   BuildTimes times;
 };

@@ -14,6 +14,7 @@
 
 #include <vector>
 
+#include "bb/modeler/clearance.h"
 #include "bb/modeler/skeleton.h"
 #include "bb/motion/clip.h"
 #include "bb/result.h"
@@ -24,6 +25,10 @@ struct WalkParams {
   float speed_mps = 1.2f;   // 0.3 .. 2.5
   float fps = 30.0f;        // frames per second of the baked clip
   bool travelling = false;  // root moves forward at speed_mps (the clip then does not loop)
+  // How far out of the neutral posture both arms hang, radians, 0 .. pi/4 (default 9 degrees). A
+  // heavy body wants more, or its upper arms sink into its torso: modeler::walk_arm_abduction
+  // (bb/modeler/clearance.h) finds the angle for a body, and exporter::build_body passes it here.
+  float arm_abduction_rad = modeler::kWalkArmAbductionRad;
 };
 
 struct WalkCycle {
