@@ -18,26 +18,36 @@ namespace bb::cli {
 namespace {
 
 // What flow remembers of a LOD set it wrote: DIR/.<name>.glb.flow, "<bytes> <mtime ns>" of the file
-// as written. A file that is not the one flow wrote (a user's `bodybuilder build` of another body of the
-// same name, an older program's) is built again rather than drawn as the built-in crowd.
+// as written and of the program that wrote it. A file that is not the one this program wrote (a user's
+// `bodybuilder build` of another body of the same name, another program's: an older or newer build,
+// another checkout's, whose bodies may differ) is built again rather than drawn as the built-in crowd.
 std::string flow_stamp(const std::string& path) {
   namespace fs = std::filesystem;
-  std::error_code ec;
-  const auto size = fs::file_size(path, ec);
-  if (ec) return {};
-  const auto time = fs::last_write_time(path, ec);
-  if (ec) return {};
-  return std::to_string(size) + " " + std::to_string(time.time_since_epoch().count()) + "\n";
+  std::string stamp;
+  for (const std::string& p : {path, std::string("/proc/self/exe")}) {
+    std::error_code ec;
+    const fs::path file = fs::canonical(p, ec);
+    if (ec) return {};
+    const auto size = fs::file_size(file, ec);
+    if (ec) return {};
+    const auto time = fs::last_write_time(file, ec);
+    if (ec) return {};
+    stamp += std::to_string(size) + " " + std::to_string(time.time_since_epoch().count()) + "\n";
+  }
+  return stamp;
 }
 
 std::string stamp_path(const std::string& path) {
   namespace fs = std::filesystem;
   const fs::path p(path);
-  return (p.parent_path() / ("." + p.filename().string() + ".flow")).string();
+  std::string name = p.filename().string();
+  name.insert(name.begin(), '.');
+  name.append(".flow");
+  return (p.parent_path() / name).string();
 }
 
 // DIR/<body.name>.glb, built unless flow wrote it there with this program (newer than the program,
-// and unchanged since: its stamp).
+// and unchanged since: its stamp, which names the program too).
 Result<std::string> built_model(const std::string& dir, const modeler::Body& body) {
   namespace fs = std::filesystem;
   std::string path = (fs::path(dir) / (body.name + ".glb")).string();

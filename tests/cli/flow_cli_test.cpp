@@ -669,8 +669,9 @@ TEST(FlowCli, DefaultCrowdIsTheBodyAndItsVariants) {
   }
 }
 
-// The default crowd's LOD sets are built once into DIR and reused; a file there that flow did not write
-// (a user's `bodybuilder build` of another body of the same name) is built again, not drawn as the crowd.
+// The default crowd's LOD sets are built once into DIR and reused; a file there that this program's flow
+// did not write (a user's `bodybuilder build` of another body of the same name, another build of the
+// program) is built again, not drawn as the crowd.
 TEST(FlowCli, TheCrowdsLodSetsAreReusedOnlyAsFlowWroteThem) {
   fs::path d = fs::temp_directory_path() / "bb_flow_cli_reuse";
   fs::remove_all(d);
@@ -702,6 +703,21 @@ TEST(FlowCli, TheCrowdsLodSetsAreReusedOnlyAsFlowWroteThem) {
   ASSERT_EQ(retouched.status, 0) << retouched.text;
   EXPECT_NE(fs::last_write_time(body), touched);
   EXPECT_EQ(bytes(body), built);
+  // Another program, even an older one (another build or checkout, whose bodies may differ): built again.
+  // Before, an older program took a newer one's files as its own, and two builds alternated in one
+  // folder compared the same meshes.
+  const fs::path other = d / "bodybuilder_other";
+  fs::copy_file(fs::path(BB_BIN_DIR) / "bodybuilder", other);
+  fs::last_write_time(other, fs::last_write_time(body) - std::chrono::hours(1));
+  const auto before_other = fs::last_write_time(body);
+  bb::test::CliRun by_other = bb::test::run_command(other.string() + " " + args);
+  ASSERT_EQ(by_other.status, 0) << by_other.text;
+  EXPECT_NE(fs::last_write_time(body), before_other);
+  // ... and that program's files are not this one's either.
+  const auto before_this = fs::last_write_time(body);
+  Out back = run(args);
+  ASSERT_EQ(back.status, 0) << back.text;
+  EXPECT_NE(fs::last_write_time(body), before_this);
   fs::remove_all(d);
 }
 
