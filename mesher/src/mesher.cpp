@@ -564,6 +564,10 @@ constexpr float kSeamBlend = 0.10f;
 // The shortest edge length the seam ramp's weights count (metres): coincident vertices still pull
 // each other finitely.
 constexpr float kShortestEdge = 0.002f;
+// Successive over-relaxation of the seam ramp's Gauss-Seidel sweeps: the same weights (to the one
+// pixel in sight of Skinning.ShouldersDoNotFoldWhenTheArmsHang) in 2,607 sweeps instead of 18,558
+// over the skinning tests' levels (LOD 0 of the default body: 111 instead of 1,113).
+constexpr float kOverRelaxation = 1.8f;
 
 // Each piece's vertices weigh only their own region's bones, so where the union joins a limb to
 // the torso the weights jumped: at the top of the shoulder a torso vertex all sternoclavicular,
@@ -573,7 +577,7 @@ constexpr float kShortestEdge = 0.002f;
 // (Skinning.ShouldersDoNotFoldWhenTheArmsHang); between the thighs likewise. Within `band`
 // (metres along the edges) of such a seam (below; `region` -1: a vertex the union or the crease
 // fitting made) the weights become the harmonic interpolation of those at the band's edge
-// (Gauss-Seidel), so they ramp across the seam; then at most four (keep_four), normalized. Each
+// (Gauss-Seidel, over-relaxed), so they ramp across the seam; then at most four (keep_four), normalized. Each
 // edge weighs 1 / its length (at most 1 / kShortestEdge), so the ramp is even in metres: with
 // every edge alike it was even in edges, and the union's seams, strips of triangles a few
 // millimetres wide, took much of the ramp within a centimetre (at the back of the armpits 0.3 of
@@ -672,9 +676,9 @@ void smooth_seam_weights(SkinnedMesh& mesh, const std::vector<int8_t>& region, f
       }
       float* own = &w[row[i] * nc];
       for (size_t c = 0; c < nc; ++c) {
-        float x = mean[c] / total;
-        change = std::max(change, std::abs(x - own[c]));
-        own[c] = x;
+        const float step = mean[c] / total - own[c];
+        change = std::max(change, std::abs(step));
+        own[c] += kOverRelaxation * step;
       }
     }
     if (change < 1e-5f) break;
