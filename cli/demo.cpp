@@ -115,6 +115,20 @@ Status write_lod_pictures(const std::string& glb, const std::string& dir) {
 // so the budget flattens the waves without starving anyone.
 constexpr int kDemoBudgetHumans = 200, kDemoRefreshBudget = 30;
 
+// Frames of every run but the main one: a third of the main run's (20 of the default 60), so that
+// the demo stays within two minutes on a slower 2-core machine (an Intel Xeon at 2.1 GHz took 136-151
+// s with half, 30 frames; the AMD EPYC of earlier sessions 86 s).
+int sweep_frames(int frames) { return std::max(10, frames / 3); }
+
+// Measured frames per crowd size (after the warm-up): the 10,000 humans' geometry frames take 1.4-2.9
+// s each on llvmpipe, twice over (with and without the screen weighting).
+constexpr int kDemoScalingFrames = 2;
+
+// The sweeps' thresholds: the paper's range less flow's posture 0.8 and view 20 degrees, which the
+// README's tables leave out (three runs, about 7 s here).
+constexpr const char* kDemoPostureThresholds = "0,0.05,0.1,0.2,0.4,0.6,1";
+constexpr const char* kDemoViewThresholds = "0,1,2,3,5,8,12,17,30";
+
 int run_demo(const std::string& dir, int frames, bool full) {
   auto t0 = std::chrono::steady_clock::now();
   if (auto st = check_output_dir(dir); !st) {
@@ -148,23 +162,26 @@ int run_demo(const std::string& dir, int frames, bool full) {
   if (int st = run_flow_command(a, &main_run); st) return st;
   a.animation = false;  // only the main run and the part cards' (below) write one
   FlowArgs s = a;
-  s.frames = std::max(10, frames / 2);
+  s.frames = sweep_frames(frames);
   s.main_files = false;  // the main run's frames and flow.json stay
   s.sweep = "posture";
+  s.sweep_thresholds = kDemoPostureThresholds;
   std::printf("flow: posture-threshold sweep ...\n");
   if (int st = run_flow_command(s, &posture); st) return st;
   s.sweep = "view";
+  s.sweep_thresholds = kDemoViewThresholds;
   std::printf("flow: view-threshold sweep ...\n");
   if (int st = run_flow_command(s, &view); st) return st;
   // The paper's future work: one card per body part, at 8 degrees with the posture test off (the
   // view sweep's 8-degree row is the same run with whole impostors), then over the view sweep.
   FlowArgs pc = a;
-  pc.frames = std::max(10, frames / 2);
+  pc.frames = sweep_frames(frames);
   pc.posture = "off";
   pc.view = "8";
   pc.impostor_parts = true;
   pc.animation = true;  // parts/animation.png: the limbs walk on between snapshots
   pc.sweep = "view";
+  pc.sweep_thresholds = kDemoViewThresholds;
   pc.out = (fs::path(dir) / "parts").string();
   ordered_json parts;
   std::printf("flow: part cards, view 8 degrees and the view sweep, posture off ...\n");
@@ -176,6 +193,7 @@ int run_demo(const std::string& dir, int frames, bool full) {
   FlowArgs pd = pc;
   pd.animation = false;
   pd.sweep.clear();
+  pd.sweep_thresholds.clear();
   pd.card_depth = "on";
   pd.out = (fs::path(dir) / "parts_depth").string();
   ordered_json parts_depth;
@@ -184,6 +202,7 @@ int run_demo(const std::string& dir, int frames, bool full) {
   FlowArgs pq = pc;
   pq.animation = false;
   pq.sweep.clear();  // the 8-degree run alone
+  pq.sweep_thresholds.clear();
   pq.texels_per_pixel = 2.0f;
   pq.impostor_edges = "blend";
   pq.card_depth = "pass";
@@ -195,7 +214,7 @@ int run_demo(const std::string& dir, int frames, bool full) {
   // orbiting camera turns every character's view at once, which makes refreshes come in waves.
   ordered_json budget_free, budget_capped;
   FlowArgs bf = a;
-  bf.frames = std::max(10, frames / 2);
+  bf.frames = sweep_frames(frames);
   bf.orbit = 30.0f;
   bf.humans = kDemoBudgetHumans;
   bf.out = (fs::path(dir) / "budget").string();
@@ -207,8 +226,8 @@ int run_demo(const std::string& dir, int frames, bool full) {
   sc.main_files = false;
   sc.frames = 2;
   sc.scaling = true;
-  sc.scaling_frames = 3;
-  // 10,000 humans (the issue's target) take ~20 s here (a warm-up and 3 measured frames of 1.4-2 s
+  sc.scaling_frames = kDemoScalingFrames;
+  // 10,000 humans (the issue's target) take 12-17 s here (a warm-up and 2 measured frames of 1.4-2.9 s
   // geometry, with and without the screen weighting); --full adds 2,000 and 5,000.
   sc.scaling_list = full ? "20,100,500,1000,2000,5000,10000" : "20,100,500,1000,10000";
   std::printf("flow: crowd sizes %s ...\n", sc.scaling_list.c_str());
@@ -427,17 +446,19 @@ int run_demo(const std::string& dir, int frames, bool full) {
   // The same runs on their own, for anyone checking these numbers against `flow --json`.
   {
     const std::string base = "bodybuilder flow --json -o out/check";
-    const int half = std::max(10, frames / 2);
+    const int third = sweep_frames(frames);
     md << "\n## Check it\n\nEach table comes from one `bodybuilder flow` run; the same runs on their own (timings "
        << "vary from run to run: up to ~15 % on a busy 2-core machine):\n\n"
        << "- main: `" << base << " --frames " << frames << "`\n"
-       << "- sweeps: `" << base << " --frames " << half << " --sweep posture` and `--sweep view`\n"
-       << "- part cards: `" << base << " --frames " << half << " --posture off --view 8 --impostor-parts --sweep view`, "
-       << "depth-corrected: the same without `--sweep view`, with `--card-depth on`; the best quality: the same "
-       << "without `--sweep view`, with `--texels-per-pixel 2 --impostor-edges blend --card-depth pass`\n"
-       << "- refresh budget: `" << base << " --frames " << half << " --orbit 30 --humans " << kDemoBudgetHumans
+       << "- sweeps: `" << base << " --frames " << third << " --sweep posture --sweep-thresholds " << kDemoPostureThresholds
+       << "` and `--sweep view --sweep-thresholds " << kDemoViewThresholds << "`\n"
+       << "- part cards: `" << base << " --frames " << third << " --posture off --view 8 --impostor-parts --sweep view "
+       << "--sweep-thresholds " << kDemoViewThresholds << "`, "
+       << "depth-corrected: the same without the sweep, with `--card-depth on`; the best quality: the same "
+       << "without the sweep, with `--texels-per-pixel 2 --impostor-edges blend --card-depth pass`\n"
+       << "- refresh budget: `" << base << " --frames " << third << " --orbit 30 --humans " << kDemoBudgetHumans
        << "`, then with `--refresh-budget " << kDemoRefreshBudget << "`\n"
-       << "- crowd sizes: `" << base << " --frames 2 --scaling --scaling-frames 3 --scaling-humans " << sc.scaling_list
+       << "- crowd sizes: `" << base << " --frames 2 --scaling --scaling-frames " << kDemoScalingFrames << " --scaling-humans " << sc.scaling_list
        << "`\n"
        << "- the targets with any model and settings: `bodybuilder flow --model M.glb [settings] --targets`; with "
        << "settings the issue does not name, a row each: `bash bench/flow/targets_matrix.sh` (from the source tree)\n\n";
@@ -475,7 +496,7 @@ void add_demo_command(CLI::App& app, int* status) {
   auto frames = std::make_shared<int>(60);
   auto full = std::make_shared<bool>(false);
   cmd->add_option("-o,--output", *dir, "Output folder")->capture_default_str();
-  cmd->add_option("--frames", *frames, "Measured frames of the main run (sweeps use half)")->capture_default_str()
+  cmd->add_option("--frames", *frames, "Measured frames of the main run (the sweeps and the other runs use a third, at least 10)")->capture_default_str()
       ->check(whole_number(4, 100000));
   cmd->add_flag("--full", *full, "Also the crowd sizes 2,000 and 5,000 (the demo runs 20 to 1,000 and 10,000)");
   cmd->callback([=] { *status = run_demo(*dir, *frames, *full); });

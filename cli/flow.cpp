@@ -310,6 +310,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   FlowSettings s;
   s.humans = a.humans;
   s.frames = a.frames;
+  s.warmup = a.warmup;
   if (!parse_size(a.size, 16, 8192, &s.width, &s.height))
     return fail("--size: expected WxH, each from 16 to 8192, e.g. 1280x1024 (got \"" + a.size + "\")");
   if (a.mode == "geometry") s.impostor = false;
@@ -323,6 +324,24 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (!a.sweep.empty() && a.sweep != "posture" && a.sweep != "view")
     return fail("--sweep: expected posture or view (got \"" + a.sweep + "\")");
   if (!a.sweep.empty() && a.mode != "both") return fail("--sweep needs --mode both");
+  // The sweep's thresholds: the paper's range by default, or the user's.
+  std::vector<float> sweep_values = a.sweep == "posture" ? std::vector<float>{0, 0.05f, 0.1f, 0.2f, 0.4f, 0.6f, 0.8f, 1.0f}
+                                                         : std::vector<float>{0, 1, 2, 3, 5, 8, 12, 17, 20, 30};
+  if (!a.sweep_thresholds.empty()) {
+    if (a.sweep.empty()) return fail("--sweep-thresholds needs --sweep posture or --sweep view");
+    const float hi = a.sweep == "posture" ? 100.0f : 180.0f;
+    sweep_values.clear();
+    std::stringstream ls(a.sweep_thresholds);
+    for (std::string item; std::getline(ls, item, ',');) {
+      float v = 0;
+      const auto [end, ec] = std::from_chars(item.data(), item.data() + item.size(), v);
+      if (ec != std::errc() || end != item.data() + item.size() || !(v >= 0.0f && v <= hi))
+        return fail("--sweep-thresholds: expected thresholds from 0 to " + std::string(a.sweep == "posture" ? "100" : "180") +
+                    ", separated by commas (got \"" + item + "\" in \"" + a.sweep_thresholds + "\")");
+      sweep_values.push_back(v);
+    }
+    if (a.sweep_thresholds.back() == ',') return fail("--sweep-thresholds: a threshold is missing after the last comma");
+  }
   if (a.targets && a.mode != "both") return fail("--targets needs --mode both");
   if (!a.models.empty() && a.variants >= 0) return fail("--variants: only for the built-in body (without --model)");
   if (a.impostor_edges != "samples" && a.impostor_edges != "coverage" && a.impostor_edges != "test" &&
@@ -617,8 +636,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   // Sweeps: the paper's graphs 1 and 2, extended with the refresh fraction and image quality.
   if (!a.sweep.empty()) {
     bool posture = a.sweep == "posture";
-    std::vector<float> values = posture ? std::vector<float>{0, 0.05f, 0.1f, 0.2f, 0.4f, 0.6f, 0.8f, 1.0f}
-                                        : std::vector<float>{0, 1, 2, 3, 5, 8, 12, 17, 20, 30};
+    const std::vector<float>& values = sweep_values;
     ordered_json sweep = ordered_json::array();
     std::ostringstream csv;
     csv << "threshold,geometry_ms,impostor_ms,ratio,speedup,refresh_fraction,psnr_db,ssim,psnr_ref_db\n";
@@ -690,6 +708,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
       FlowSettings ss = s;
       ss.humans = n;
       ss.frames = a.scaling_frames;
+      // Large crowds' impostor frames take up to 0.2 s here (10,000 humans without the screen weighting).
+      ss.warmup = std::min(ss.warmup, 3);
+      ss.geometry_warmup = false;
       ss.keep_frames.clear();
       ss.quality_every = 0;
       auto r = run_flow(model, ss, device);
@@ -833,6 +854,11 @@ void add_flow_command(CLI::App& app, int* status) {
       ->check(whole_number(0, 16));
   cmd->add_option("--humans", a->humans, "Number of humans")->capture_default_str()->check(whole_number(1, 100000));
   cmd->add_option("--frames", a->frames, "Measured frames")->capture_default_str()->check(whole_number(1, 100000));
+  cmd->add_option("--warmup", a->warmup,
+                  "Frames before the measured ones, in which the impostor cache fills and its snapshots' ages spread "
+                  "out (the geometry path draws the first alone); --scaling takes at most 3")
+      ->capture_default_str()
+      ->check(whole_number(0, 100000));
   cmd->add_option("--size", a->size, "Scene window WxH")->capture_default_str();
   cmd->add_option("--mode", a->mode, "geometry, impostor or both (same frames, interleaved)")->capture_default_str();
   cmd->add_option("--posture", a->posture, "Posture threshold (relative) or off")->capture_default_str();
@@ -933,6 +959,9 @@ void add_flow_command(CLI::App& app, int* status) {
   cmd->add_option("--ahead-count", a->ahead_count, "With --refresh-ahead: most impostors refreshed ahead in one frame")
       ->capture_default_str();
   cmd->add_option("--sweep", a->sweep, "Sweep the posture threshold (view off) or the view threshold (posture off)");
+  cmd->add_option("--sweep-thresholds", a->sweep_thresholds,
+                  "The sweep's thresholds, separated by commas (default: posture 0,0.05,0.1,0.2,0.4,0.6,0.8,1; view "
+                  "0,1,2,3,5,8,12,17,20,30 degrees)");
   cmd->add_flag("--scaling", a->scaling, "Also measure both paths from 20 to 10,000 humans");
   cmd->add_flag("--targets", a->targets,
                 "Also check the paper's targets with these settings: both thresholds 0 (at most 10 % slower than "

@@ -35,10 +35,22 @@ struct FlowFrameImages {
   std::vector<glm::vec4> refreshed;
 };
 
+inline constexpr int kDefaultWarmup = 30;  // FlowSettings::warmup, `flow --warmup`
+
 struct FlowSettings {
   int humans = 20;
   int frames = 120;            // measured frames (after `warmup` frames)
-  int warmup = 3;
+  // Frames before the measured ones. The impostor path draws them all (its cache fills, and its
+  // snapshots' ages spread out as they do in a long run), the geometry path the first alone (its
+  // shaders and buffers), so they cost little. Every snapshot is fresh in the first frame and they
+  // age in step; with 3 warm-up frames a short run saw too few of their refreshes: the default crowd
+  // at 8 degrees (posture test off) 16.6x with a refresh fraction of 0.0375 in 20 frames against
+  // 13.1x and 0.055 after 30, and part cards' PSNR 0.2 dB high (forty-eighth session).
+  int warmup = kDefaultWarmup;
+  // Whether the geometry path draws the first warm-up frame. `--scaling` does without: after the
+  // first crowd size the first frame of 10,000 humans costs what the next ones do (2,537.5 against
+  // 2,539.5 ms a frame in two runs of 20 and 10,000 humans), and it took 2-3 s twice over.
+  bool geometry_warmup = true;
   int width = 1280, height = 1024;
   float fps = 30.0f;           // scene time step 1/fps per frame
   bool geometry = true, impostor = true;
@@ -211,7 +223,8 @@ struct FlowArgs {
   std::vector<std::string> models;
   int variants = -1;
   std::string out = "out/flow", size = "1280x1024", mode = "both", posture = "0.4", view = "8", sweep;
-  int humans = 20, frames = 120;
+  std::string sweep_thresholds;  // --sweep-thresholds: empty, the paper's range
+  int humans = 20, frames = 120, warmup = kDefaultWarmup;
   bool json = false, scaling = false, distance_weighting = false;
   bool targets = false;  // --targets: also the worst case and 5, 8, 17 degrees with these settings
   std::string screen_weighting = "32";

@@ -485,9 +485,10 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
     };
     double ms = 0;
     // The geometry path keeps nothing from frame to frame, so one warm-up frame readies it (its
-    // shaders and buffers); the impostor path warms up over every warm-up frame, as its cache
-    // fills and ages. A geometry frame of 10,000 humans takes 1.4-2 s on llvmpipe.
-    if (s.geometry && (measured || f == 0)) {
+    // shaders and buffers), or none (FlowSettings::geometry_warmup); the impostor path warms up over
+    // every warm-up frame, as its cache fills and ages. A geometry frame of 10,000 humans takes
+    // 1.4-2.9 s on llvmpipe.
+    if (s.geometry && (measured || (f == 0 && s.geometry_warmup))) {
       const FrameStats st = draw(**target_g, RenderMode::kGeometry, &ms);
       if (measured) {
         g_ms += ms;

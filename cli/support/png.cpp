@@ -9,6 +9,7 @@
 #define STB_IMAGE_WRITE_IMPLEMENTATION
 #define STBIW_WINDOWS_UTF8
 #include <stb/stb_image_write.h>
+#include <zlib.h>
 
 #include "../io.h"
 #include "animated_png.h"
@@ -35,10 +36,6 @@ void put32(std::string& out, std::uint32_t v) {
 void put16(std::string& out, std::uint16_t v) {
   out.push_back(static_cast<char>(v >> 8));
   out.push_back(static_cast<char>(v & 0xff));
-}
-
-std::uint32_t get32(const unsigned char* p) {
-  return (std::uint32_t{p[0]} << 24) | (std::uint32_t{p[1]} << 16) | (std::uint32_t{p[2]} << 8) | p[3];
 }
 
 // length, type, data, CRC of type and data
@@ -73,20 +70,29 @@ AnimatedPng::AnimatedPng(int width, int height, int channels, std::uint16_t dela
 }
 
 Status AnimatedPng::add(const unsigned char* pixels) {
-  // stb's PNG (filtered rows, deflated), of which the IDAT data is the frame's zlib stream.
-  std::string png;
-  auto sink = [](void* ctx, void* data, int size) { static_cast<std::string*>(ctx)->append(static_cast<char*>(data), size); };
-  if (!stbi_write_png_to_func(sink, &png, width_, height_, channels_, pixels, width_ * channels_))
-    return Error{"", "frame " + std::to_string(frames_.size()), "PNG encoding failed"};
-  std::string z;
-  const auto* p = reinterpret_cast<const unsigned char*>(png.data());
-  for (std::size_t at = 8; at + 12 <= png.size();) {
-    const std::uint32_t len = get32(p + at);
-    if (at + 12 + len > png.size()) break;
-    if (std::memcmp(p + at + 4, "IDAT", 4) == 0) z.append(png, at + 8, len);
-    at += 12 + len;
+  // Each row filtered with PNG's "Up" filter (the first with "Sub"), then deflated by zlib at level
+  // 3. stb's encoder (adaptive filters, its own deflate) took 27 % of a 60-frame `flow --animation`
+  // run's CPU time, about 4 of its 10.7 s on this machine.
+  const std::size_t stride = static_cast<std::size_t>(width_) * channels_;
+  std::vector<unsigned char> raw(static_cast<std::size_t>(height_) * (stride + 1));
+  for (int y = 0; y < height_; ++y) {
+    unsigned char* out = raw.data() + static_cast<std::size_t>(y) * (stride + 1);
+    const unsigned char* row = pixels + static_cast<std::size_t>(y) * stride;
+    if (y == 0) {
+      out[0] = 1;  // Sub
+      for (std::size_t i = 0; i < stride; ++i)
+        out[1 + i] = static_cast<unsigned char>(row[i] - (i >= std::size_t(channels_) ? row[i - channels_] : 0));
+    } else {
+      out[0] = 2;  // Up
+      const unsigned char* above = row - stride;
+      for (std::size_t i = 0; i < stride; ++i) out[1 + i] = static_cast<unsigned char>(row[i] - above[i]);
+    }
   }
-  if (z.empty()) return Error{"", "frame " + std::to_string(frames_.size()), "PNG encoding gave no image data"};
+  uLongf size = compressBound(static_cast<uLong>(raw.size()));
+  std::string z(size, '\0');
+  if (compress2(reinterpret_cast<Bytef*>(z.data()), &size, raw.data(), static_cast<uLong>(raw.size()), 3) != Z_OK)
+    return Error{"", "frame " + std::to_string(frames_.size()), "PNG encoding failed (zlib)"};
+  z.resize(size);
   frames_.push_back(std::move(z));
   return Ok{};
 }

@@ -1063,6 +1063,22 @@ TEST(FlowCli, WindowSizesChooseTheAtlasWindows) {
   EXPECT_LE(ours, 2);
 }
 
+// --sweep-thresholds runs the sweep at the thresholds given (the demo leaves out two of the paper's
+// range), in that order, each a row of its own.
+TEST(FlowCli, SweepRunsTheThresholdsGiven) {
+  Out o = run("flow --variants 0 --humans 2 --frames 2 --warmup 2 --size 160x128 --sweep view --sweep-thresholds 8,0,2.5 "
+              "--json -o " + (fs::temp_directory_path() / "bb_flow_cli_sweep_thresholds").string());
+  if (o.text.find("EGL") != std::string::npos && o.status != 0) GTEST_SKIP() << "no headless OpenGL: " << o.text;
+  ASSERT_EQ(o.status, 0) << o.text;
+  const auto j = nlohmann::json::parse(o.text.substr(o.text.find('{')), nullptr, false);
+  ASSERT_FALSE(j.is_discarded()) << o.text;
+  ASSERT_EQ(j["sweep"].size(), 3u) << o.text;
+  EXPECT_EQ(j["sweep"][0]["threshold"].get<double>(), 8.0);
+  EXPECT_EQ(j["sweep"][1]["threshold"].get<double>(), 0.0);
+  EXPECT_EQ(j["sweep"][2]["threshold"].get<double>(), 2.5);
+  EXPECT_EQ(j["sweep"][1]["refresh_fraction"].get<double>(), 1.0);  // 0 degrees: every frame
+}
+
 TEST(FlowCli, BadFlagsAreErrors) {
   for (const char* args : {"flow --size 12", "flow --size 640x480px", "flow --size 99999x99999", "flow --mode fast", "flow --posture -1", "flow --view abc",
                            "flow --sweep size", "flow --model /nonexistent.glb --frames 1",
@@ -1080,7 +1096,11 @@ TEST(FlowCli, BadFlagsAreErrors) {
                            "flow --short-lived sometimes", "flow --targets --mode impostor",
                            "flow --texels-per-pixel nan", "flow --orbit inf", "flow --orbit 1e30", "flow --view inf",
                            "flow --view 181", "flow --window-sizes 8,16", "flow --window-sizes 2048",
-                           "flow --window-sizes 64,,32", "flow --window-sizes 256,128,64,32,16,8,4,2,1"}) {
+                           "flow --window-sizes 64,,32", "flow --window-sizes 256,128,64,32,16,8,4,2,1",
+                           "flow --sweep-thresholds 0,8", "flow --sweep view --sweep-thresholds 0,200",
+                           "flow --sweep posture --sweep-thresholds 0,,1", "flow --sweep view --sweep-thresholds 0,8,",
+                           "flow --sweep view --sweep-thresholds -1", "flow --sweep view --sweep-thresholds nan",
+                           "flow --sweep view --sweep-thresholds eight", "flow --warmup -1"}) {
     Out o = run(args);
     EXPECT_NE(o.status, 0) << args;
     EXPECT_NE(o.text.find("flow"), std::string::npos) << args << ": " << o.text;
