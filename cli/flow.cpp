@@ -27,15 +27,16 @@ namespace bb::cli {
 
 namespace {
 
-// The whole numbers from `lo` to `hi` of a comma-separated list, in order; on failure the item
-// that is not one.
-Result<std::vector<int>> parse_int_list(const std::string& list, int lo, int hi) {
-  std::vector<int> out;
+// The numbers (whole ones for an integer T) from `lo` to `hi` of a comma-separated list, in order;
+// on failure the item that is not one (nan is none).
+template <class T>
+Result<std::vector<T>> parse_list(const std::string& list, T lo, T hi) {
+  std::vector<T> out;
   std::stringstream ls(list);
   for (std::string item; std::getline(ls, item, ',');) {
-    int n = 0;
+    T n = 0;
     const auto [end, ec] = std::from_chars(item.data(), item.data() + item.size(), n);
-    if (ec != std::errc() || end != item.data() + item.size() || n < lo || n > hi) return Error{"", "", item};
+    if (ec != std::errc() || end != item.data() + item.size() || !(n >= lo && n <= hi)) return Error{"", "", item};
     out.push_back(n);
   }
   if (list.empty() || list.back() == ',') return Error{"", "", ""};  // getline drops a last empty item
@@ -329,18 +330,11 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
                                                          : std::vector<float>{0, 1, 2, 3, 5, 8, 12, 17, 20, 30};
   if (!a.sweep_thresholds.empty()) {
     if (a.sweep.empty()) return fail("--sweep-thresholds needs --sweep posture or --sweep view");
-    const float hi = a.sweep == "posture" ? 100.0f : 180.0f;
-    sweep_values.clear();
-    std::stringstream ls(a.sweep_thresholds);
-    for (std::string item; std::getline(ls, item, ',');) {
-      float v = 0;
-      const auto [end, ec] = std::from_chars(item.data(), item.data() + item.size(), v);
-      if (ec != std::errc() || end != item.data() + item.size() || !(v >= 0.0f && v <= hi))
-        return fail("--sweep-thresholds: expected thresholds from 0 to " + std::string(a.sweep == "posture" ? "100" : "180") +
-                    ", separated by commas (got \"" + item + "\" in \"" + a.sweep_thresholds + "\")");
-      sweep_values.push_back(v);
-    }
-    if (a.sweep_thresholds.back() == ',') return fail("--sweep-thresholds: a threshold is missing after the last comma");
+    auto given = parse_list(a.sweep_thresholds, 0.0f, a.sweep == "posture" ? 100.0f : 180.0f);
+    if (!given)
+      return fail("--sweep-thresholds: expected thresholds from 0 to " + std::string(a.sweep == "posture" ? "100" : "180") +
+                  ", separated by commas (got \"" + given.error().reason + "\" in \"" + a.sweep_thresholds + "\")");
+    sweep_values = *given;
   }
   if (a.targets && a.mode != "both") return fail("--targets needs --mode both");
   if (!a.models.empty() && a.variants >= 0) return fail("--variants: only for the built-in body (without --model)");
@@ -470,7 +464,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
                               : a.impostor_target == "adaptive" ? -1
                                                                 : 0;
   // The crowd sizes of --scaling, checked before anything runs.
-  auto scaling_list = parse_int_list(a.scaling_list, 1, 100000);
+  auto scaling_list = parse_list(a.scaling_list, 1, 100000);
   if (!scaling_list)
     return fail("--scaling-humans: expected crowd sizes from 1 to 100000, separated by commas (got \"" +
                 scaling_list.error().reason + "\" in \"" + a.scaling_list + "\")");
@@ -479,7 +473,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   // The impostor windows' sizes: 1 to 8 of them, each 1 to 1024 pixels (an atlas page), largest first.
   {
     const std::string expected = "--window-sizes: expected 1 to 8 window sizes in pixels, from 1 to 1024, largest first, separated by commas";
-    auto sizes = parse_int_list(a.window_sizes, 1, 1024);
+    auto sizes = parse_list(a.window_sizes, 1, 1024);
     if (!sizes) return fail(expected + " (got \"" + sizes.error().reason + "\" in \"" + a.window_sizes + "\")");
     if (sizes->empty() || sizes->size() > s.windows.size.size())
       return fail(expected + " (got " + std::to_string(sizes->size()) + " in \"" + a.window_sizes + "\")");
