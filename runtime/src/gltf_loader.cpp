@@ -515,6 +515,17 @@ struct Builder {
     return offset;
   }
 
+  // Whether runtime node `n`'s rest transform in the world mirrors (an odd number of negative
+  // scales along its chain).
+  bool mirrored(int n) const {
+    bool odd = false;
+    for (; n >= 0; n = out.nodes[static_cast<std::size_t>(n)].parent) {
+      const glm::vec3 s = out.nodes[static_cast<std::size_t>(n)].rest.scale;
+      odd ^= s.x * s.y * s.z < 0.0f;
+    }
+    return odd;
+  }
+
   int rigid(int runtime_node) {
     if (auto it = rigid_slot.find(runtime_node); it != rigid_slot.end()) return it->second;
     int slot = static_cast<int>(out.palette.size());
@@ -583,6 +594,7 @@ struct Builder {
       mat.alpha_cutoff = static_cast<float>(gm.alphaCutoff);
     }
     mat.alpha_blend = gm.alphaMode == "BLEND";
+    mat.double_sided = gm.doubleSided;
     int r = static_cast<int>(out.materials.size());
     out.materials.push_back(mat);
     material_index[{mi, colored}] = r;
@@ -830,6 +842,11 @@ struct Builder {
           lod.vertices[base + v].normal = l > 0.0f ? acc[v] / l : glm::vec3(0, 1, 0);
         }
       }
+      // A rigid mesh under a mirroring node (a negative determinant of its rest transform, glTF's
+      // rule for the winding) has its triangles turned, so that front faces wind counter-clockwise
+      // as drawn (Material::double_sided). A skinned mesh keeps the file's winding.
+      if (!skinned && mirrored(remap[gn]))
+        for (std::size_t t = 0; t + 2 < ind.size(); t += 3) std::swap(ind[t + 1], ind[t + 2]);
       Primitive prim;
       prim.first_index = static_cast<std::uint32_t>(lod.indices.size());
       prim.index_count = static_cast<std::uint32_t>(ind.size());

@@ -344,6 +344,37 @@ TEST(GltfLoader, UnlitMaterialsAreMarked) {
   EXPECT_FALSE(m->materials[lod.primitives[1].material].unlit);
 }
 
+// glTF's doubleSided is kept (default: single-sided, back faces culled), and a rigid mesh under a
+// mirroring node (scale -1 along x: a negative determinant) has its triangles turned, so that its
+// front faces wind counter-clockwise as drawn; the same mesh on an unmirrored node keeps the file's order.
+TEST(GltfLoader, DoubleSidedMaterialsAndMirroredNodes) {
+  for (bool mirrored : {false, true}) {
+    GltfFile f;
+    int pos = f.accessor(f.view(std::vector<float>{0, 0, 0, 1, 0, 0, 0, 1, 0}), kFloat, 3, "VEC3");
+    int ind = f.accessor(f.view(std::vector<std::uint16_t>{0, 1, 2}), kUShort, 3, "SCALAR");
+    f.mesh({{"POSITION", pos}}, ind, 0);
+    json prim = f.j["meshes"][0]["primitives"][0];
+    prim["material"] = 1;
+    f.j["meshes"][0]["primitives"].push_back(prim);
+    f.j["materials"] = json::array({{{"doubleSided", true}}, json::object()});
+    if (mirrored) f.j["nodes"][0]["scale"] = {-1.0, 1.0, 1.0};
+    auto m = load_model(f.write(mirrored ? "mirrored" : "plain"));
+    ASSERT_TRUE(m.ok()) << m.error().message();
+    const MeshLod& lod = m->lods[0];
+    ASSERT_EQ(lod.primitives.size(), 2u);
+    EXPECT_TRUE(m->materials[lod.primitives[0].material].double_sided);
+    EXPECT_FALSE(m->materials[lod.primitives[1].material].double_sided);
+    for (const Primitive& p : lod.primitives) {
+      ASSERT_EQ(p.index_count, 3u);
+      const std::uint32_t* t = &lod.indices[p.first_index];
+      const std::uint32_t a = t[0] - t[0], b = t[1] - t[0], c = t[2] - t[0];  // relative to the first corner
+      EXPECT_EQ(a, 0u);
+      EXPECT_EQ(b, mirrored ? 2u : 1u) << (mirrored ? "mirrored" : "plain");
+      EXPECT_EQ(c, mirrored ? 1u : 2u) << (mirrored ? "mirrored" : "plain");
+    }
+  }
+}
+
 // glTF's emissiveFactor is light of the surface's own, added after the shading: a black square that
 // gives off orange is drawn orange, as geometry and as an impostor (lit as drawn too); without it, black.
 TEST(GltfLoader, EmissiveColourIsDrawn) {

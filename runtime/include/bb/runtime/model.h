@@ -101,6 +101,11 @@ struct Material {
   bool alpha_blend = false;
   bool vertex_colors = false;  // its primitives' vertices carry colours (Vertex::color)
   bool unlit = false;          // KHR_materials_unlit: drawn in its base colour, with no light
+  // glTF doubleSided: both faces drawn, a back face lit with its normal reversed. Otherwise (glTF's
+  // default) back faces are culled, in the scene and in snapshots alike: front faces wind
+  // counter-clockwise in model space (a rigid mesh under a mirroring node has its triangles turned
+  // at load, so this holds for every primitive).
+  bool double_sided = false;
   // glTF emissiveFactor (linear), added to the shaded colour; emissiveTexture is not read.
   glm::vec3 emissive{0.0f};
 };

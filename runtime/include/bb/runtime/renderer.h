@@ -128,7 +128,9 @@ class Renderer {
   // its planner starts over at its next frame).
   // GL state left changed: program 0, VAO 0, the textures bound to units 0-6 (no sampler objects
   // left bound), viewport, depth test on (LESS, writes on), blending, alpha to coverage and face
-  // culling off (multisampling as found).
+  // culling off, the cull face GL_BACK and the front face GL_CCW (multisampling as found). Back
+  // faces of materials that are not double-sided (glTF's default) are culled in the scene's
+  // geometry and in the snapshots.
   // The snapshot passes into the atlas do not take the game's scissor test, polygon offset,
   // polygon mode, rasterizer discard, colour masks or (multisampled snapshots) sample masking:
   // each is turned off there and put back as found, with the draw framebuffer, the viewport and
