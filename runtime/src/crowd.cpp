@@ -1453,7 +1453,8 @@ FramePlanner::PartCache FramePlanner::part_card(const PartJob& job, const Charac
   const std::size_t prims = m.lods[static_cast<std::size_t>(job.slod)].primitives.size();
   tris = 0;
   for (std::size_t k = 0; k < prims; ++k)
-    tris += pi.ranges[k * static_cast<std::size_t>(parts_) + static_cast<std::size_t>(p)].count / 3;
+    tris += (pi.ranges[k * static_cast<std::size_t>(parts_) + static_cast<std::size_t>(p)].count +
+             pi.ranges[k * static_cast<std::size_t>(parts_) + static_cast<std::size_t>(p)].caps) / 3;  // caps too
   return next;
 }
 

@@ -1,6 +1,7 @@
 // Model: baking the clips for the per-frame paths, the snapshot frame (Ta, radius) and the
 // automatic choice of the posture-test pairs.
 #include <algorithm>
+#include <unordered_map>
 #include <cmath>
 #include <limits>
 
@@ -153,6 +154,135 @@ float ground_speed(const BakedClip& bc, const std::vector<glm::vec3>& track, std
   std::nth_element(speeds.begin(), speeds.begin() + speeds.size() / 2, speeds.end());
   const float v = speeds[speeds.size() / 2];
   return v >= 0.05f * height ? v : 0.0f;
+}
+
+// Closes each part's cuts (PartIndices::Range::caps): the edges its triangles use once that the
+// level's triangles use twice (positions welded, so UV seams and primitive borders are not cuts,
+// and the mesh's own borders stay open), chained into openings, each closed by a fan from its
+// centre wound against the part's triangles there, so that it faces out of the part.
+void add_part_caps(const MeshLod& ml, int parts, PartIndices& pi) {
+  const std::size_t nv = ml.vertices.size(), prims = ml.primitives.size();
+  const std::size_t np = static_cast<std::size_t>(parts);
+  // Welded vertex ids: the first of each run of equal bind positions, in lexicographic order.
+  std::vector<std::uint32_t> order(nv), weld(nv);
+  for (std::uint32_t v = 0; v < nv; ++v) order[v] = v;
+  auto position_less = [&](std::uint32_t a, std::uint32_t b) {
+    const glm::vec3 &p = ml.vertices[a].position, &q = ml.vertices[b].position;
+    return p.x != q.x ? p.x < q.x : p.y != q.y ? p.y < q.y : p.z < q.z;
+  };
+  std::sort(order.begin(), order.end(), position_less);
+  for (std::size_t i = 0; i < nv; ++i)
+    weld[order[i]] = i > 0 && ml.vertices[order[i]].position == ml.vertices[order[i - 1]].position ? weld[order[i - 1]] : order[i];
+  auto edge = [&](std::uint32_t a, std::uint32_t b) {
+    a = weld[a], b = weld[b];
+    return (std::uint64_t{std::min(a, b)} << 32) | std::max(a, b);
+  };
+  std::unordered_map<std::uint64_t, int> level_uses, uses;
+  for (const Primitive& prim : ml.primitives)
+    for (std::uint32_t t = prim.first_index; t + 2 < prim.first_index + prim.index_count; t += 3)
+      for (int c = 0; c < 3; ++c) ++level_uses[edge(ml.indices[t + c], ml.indices[t + (c + 1) % 3])];
+
+  struct Cut {
+    std::uint32_t a, b;  // as the part's triangle runs along it (level vertex ids)
+    std::size_t range;   // the part's range of the primitive that triangle is in
+  };
+  std::vector<std::vector<std::uint32_t>> caps(pi.ranges.size());
+  std::vector<Cut> cut;
+  std::unordered_multimap<std::uint32_t, std::size_t> from;
+  std::vector<char> chained;
+  std::vector<std::size_t> loop;
+  for (std::size_t p = 0; p < np; ++p) {
+    uses.clear();
+    for (std::size_t k = 0; k < prims; ++k) {
+      const PartIndices::Range& r = pi.ranges[k * np + p];
+      for (std::uint32_t t = r.first; t + 2 < r.first + r.count; t += 3)
+        for (int c = 0; c < 3; ++c) ++uses[edge(pi.indices[t + c], pi.indices[t + (c + 1) % 3])];
+    }
+    cut.clear();
+    for (std::size_t k = 0; k < prims; ++k) {
+      const PartIndices::Range& r = pi.ranges[k * np + p];
+      for (std::uint32_t t = r.first; t + 2 < r.first + r.count; t += 3)
+        for (int c = 0; c < 3; ++c) {
+          const std::uint32_t a = pi.indices[t + c], b = pi.indices[t + (c + 1) % 3];
+          const std::uint64_t e = edge(a, b);
+          if (uses[e] == 1 && level_uses[e] == 2) cut.push_back({a, b, k * np + p});
+        }
+    }
+    from.clear();
+    for (std::size_t i = 0; i < cut.size(); ++i) from.emplace(weld[cut[i].a], i);
+    chained.assign(cut.size(), 0);
+    for (std::size_t s = 0; s < cut.size(); ++s) {
+      if (chained[s]) continue;
+      // One opening: the cut's edges end to end from s, until none goes on.
+      loop.clear();
+      for (std::size_t e = s;;) {
+        chained[e] = 1;
+        loop.push_back(e);
+        auto [lo, hi] = from.equal_range(weld[cut[e].b]);
+        while (lo != hi && chained[lo->second]) ++lo;
+        if (lo == hi) break;
+        e = lo->second;
+      }
+      if (loop.size() < 4) continue;  // a lone triangle or a sliver, not an opening
+      // The centre.
+      Vertex centre;
+      centre.position = glm::vec3(0.0f);
+      centre.normal = glm::vec3(0.0f);
+      glm::vec4 color(0.0f);
+      std::vector<std::pair<int, float>> joint_weight;
+      for (std::size_t e : loop) {
+        const Vertex& v = ml.vertices[cut[e].a];
+        centre.position += v.position;
+        centre.normal += v.normal;
+        color += glm::vec4(v.color);
+        for (int j = 0; j < 4; ++j) {
+          if (v.weights[j] <= 0.0f) continue;
+          auto it = std::find_if(joint_weight.begin(), joint_weight.end(), [&](const auto& jw) { return jw.first == v.joints[j]; });
+          if (it == joint_weight.end())
+            joint_weight.emplace_back(v.joints[j], v.weights[j]);
+          else
+            it->second += v.weights[j];
+        }
+      }
+      const float n = static_cast<float>(loop.size());
+      centre.position /= n;
+      centre.normal /= n;
+      centre.color = glm::u8vec4(glm::round(color / n));
+      std::sort(joint_weight.begin(), joint_weight.end(), [](const auto& x, const auto& y) { return x.second > y.second || (x.second == y.second && x.first < y.first); });
+      float sum = 0.0f;
+      for (std::size_t j = 0; j < 4 && j < joint_weight.size(); ++j) sum += joint_weight[j].second;
+      centre.joints = glm::u16vec4(0);
+      centre.weights = glm::vec4(0.0f);
+      for (std::size_t j = 0; j < 4 && j < joint_weight.size(); ++j) {
+        centre.joints[static_cast<int>(j)] = static_cast<std::uint16_t>(joint_weight[j].first);
+        centre.weights[static_cast<int>(j)] = joint_weight[j].second / sum;
+      }
+      // The fan, each triangle on corners of its own (b, a, centre), in the primitive of the part's
+      // triangle at its edge.
+      for (std::size_t e : loop) {
+        const Vertex& a = ml.vertices[cut[e].a];
+        const Vertex& b = ml.vertices[cut[e].b];
+        const std::uint32_t at = static_cast<std::uint32_t>(nv + pi.cap_vertices.size());
+        Vertex c = centre;
+        c.uv = 0.5f * (a.uv + b.uv);
+        pi.cap_vertices.push_back(b);
+        pi.cap_vertices.push_back(a);
+        pi.cap_vertices.push_back(c);
+        caps[cut[e].range].insert(caps[cut[e].range].end(), {at, at + 1, at + 2});
+      }
+    }
+  }
+  // Each range's triangles, then its caps.
+  std::vector<std::uint32_t> indices;
+  for (std::size_t i = 0; i < pi.ranges.size(); ++i) {
+    PartIndices::Range& r = pi.ranges[i];
+    const std::uint32_t first = static_cast<std::uint32_t>(indices.size());
+    indices.insert(indices.end(), pi.indices.begin() + r.first, pi.indices.begin() + r.first + r.count);
+    indices.insert(indices.end(), caps[i].begin(), caps[i].end());
+    r.first = first;
+    r.caps = static_cast<std::uint32_t>(caps[i].size());
+  }
+  pi.indices = std::move(indices);
 }
 
 }  // namespace
@@ -419,6 +549,7 @@ void Model::split_parts(std::span<const int> bones) {
         }
         pi.ranges.push_back(r);
       }
+    add_part_caps(ml, parts, pi);
   }
   // Bounds of each part in its bone's palette space, over the sampled frames.
   auto skin_at = [&](const Vertex& v, std::size_t row) {

@@ -1699,6 +1699,10 @@ TEST(BodyParts, HingeSplitsIntoTwoPartsWithTheirOwnTriangles) {
   EXPECT_EQ(pi.ranges[0].count, 3u);
   EXPECT_EQ(pi.ranges[1].count, 3u);
   EXPECT_EQ(pi.indices[pi.ranges[1].first], 3u);
+  // Two loose triangles: their edges are the mesh's own borders, not cuts, so nothing is capped.
+  EXPECT_EQ(pi.ranges[0].caps, 0u);
+  EXPECT_EQ(pi.ranges[1].caps, 0u);
+  EXPECT_TRUE(pi.cap_vertices.empty());
   // The arm's box, in its palette (bind) space: the arm triangle, plus the margin.
   EXPECT_NEAR(parts[1].box_min.y, 1.0f, 0.05f);
   EXPECT_NEAR(parts[1].box_max.y, 2.0f, 0.05f);
@@ -1711,6 +1715,67 @@ TEST(BodyParts, HingeSplitsIntoTwoPartsWithTheirOwnTriangles) {
   const int bones[] = {0, 1};
   still.set_body_parts(bones);
   EXPECT_EQ(still.body_parts().size(), 2u);
+}
+
+// A closed square tube along y from 0 to 2, split at y = 1 into two parts (the middle ring
+// weighted half to each bone): each part's cut at y = 1 is closed by a fan of 4 triangles from the
+// ring's centre, facing out of the part, on vertices of their own after the level's.
+TEST(BodyParts, CutsAreClosedByCapsFacingOutOfTheirPart) {
+  Model m;
+  m.name = "tube";
+  m.nodes = {Node{"root", -1, {}}, Node{"top", 0, {glm::vec3(0, 1, 0), glm::quat(1, 0, 0, 0), glm::vec3(1)}}};
+  m.palette = {PaletteEntry{0, glm::mat4(1)}, PaletteEntry{1, glm::translate(glm::mat4(1), glm::vec3(0, -1, 0))}};
+  MeshLod lod;
+  const glm::vec2 square[4] = {{1, 1}, {1, -1}, {-1, -1}, {-1, 1}};  // (x, z), clockwise from above
+  for (int ring = 0; ring < 3; ++ring)
+    for (const glm::vec2& c : square) {
+      Vertex v;
+      v.position = glm::vec3(c.x, static_cast<float>(ring), c.y);
+      v.normal = glm::normalize(glm::vec3(c.x, 0, c.y));
+      v.joints = glm::u16vec4(ring == 2 ? 1 : 0, 1, 0, 0);
+      v.weights = ring == 1 ? glm::vec4(0.5f, 0.5f, 0, 0) : glm::vec4(1, 0, 0, 0);
+      lod.vertices.push_back(v);
+    }
+  for (std::uint32_t band = 0; band < 2; ++band)
+    for (std::uint32_t i = 0; i < 4; ++i) {
+      const std::uint32_t a = band * 4 + i, b = band * 4 + (i + 1) % 4, c = a + 4, d = b + 4;
+      lod.indices.insert(lod.indices.end(), {a, b, c, b, d, c});  // facing out
+    }
+  lod.indices.insert(lod.indices.end(), {0, 2, 1, 0, 3, 2, 8, 9, 10, 8, 10, 11});  // the ends, facing out
+  lod.primitives = {Primitive{0, static_cast<std::uint32_t>(lod.indices.size()), 0}};
+  m.lods = {lod};
+  m.materials = {Material{}};
+  m.bake(60.0f);
+  const int bones[] = {0, 1};
+  m.set_body_parts(bones);
+  ASSERT_EQ(m.body_parts().size(), 2u);
+  const PartIndices& pi = m.part_indices(0);
+  ASSERT_EQ(pi.ranges.size(), 2u);
+  ASSERT_EQ(pi.cap_vertices.size(), 24u);
+  const std::vector<Vertex>& v = m.lods[0].vertices;
+  auto corner = [&](std::uint32_t i) { return i < v.size() ? v[i] : pi.cap_vertices[i - v.size()]; };
+  for (int p = 0; p < 2; ++p) {
+    const PartIndices::Range& r = pi.ranges[static_cast<std::size_t>(p)];
+    EXPECT_EQ(r.count, 30u) << p;  // its band and its end
+    ASSERT_EQ(r.caps, 12u) << p;
+    float area = 0.0f;
+    for (std::uint32_t t = r.first + r.count; t < r.first + r.count + r.caps; t += 3) {
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_GE(pi.indices[t + c], v.size());  // corners of their own
+        EXPECT_FLOAT_EQ(corner(pi.indices[t + c]).position.y, 1.0f);
+      }
+      const Vertex centre = corner(pi.indices[t + 2]);
+      EXPECT_EQ(centre.position, glm::vec3(0, 1, 0));
+      EXPECT_NEAR(glm::length(centre.normal), 0.0f, 1e-6f);  // the ring's normals cancel
+      EXPECT_EQ(centre.joints, glm::u16vec4(0, 1, 0, 0));
+      EXPECT_EQ(centre.weights, glm::vec4(0.5f, 0.5f, 0, 0));
+      const glm::vec3 a = corner(pi.indices[t]).position, b = corner(pi.indices[t + 1]).position;
+      const glm::vec3 facing = glm::cross(b - a, centre.position - a);
+      area += 0.5f * facing.y;
+    }
+    // The lower part's cap faces up, the upper part's down, and each covers the 2 x 2 opening.
+    EXPECT_NEAR(area, p == 0 ? 4.0f : -4.0f, 1e-5f) << p;
+  }
 }
 
 TEST(BodyParts, CardFollowsItsBoneWithoutARefresh) {

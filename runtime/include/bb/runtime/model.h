@@ -232,11 +232,23 @@ struct BodyPart {
 // Triangles of each body part, per mesh level: the level's index list regrouped, triangles at the
 // joints repeated in every part they overlap (so cards do not crack where limbs bend).
 struct PartIndices {
-  std::vector<std::uint32_t> indices;  // into the level's vertices
+  std::vector<std::uint32_t> indices;  // into the level's vertices, then cap_vertices
   struct Range {
-    std::uint32_t first = 0, count = 0;  // into `indices`
+    std::uint32_t first = 0, count = 0;  // into `indices`: the part's triangles
+    // Then `caps` more indices: triangles that close the part's cuts (where its triangles end and
+    // its neighbour's begin, not the mesh's own borders), a fan from each opening's centre, facing
+    // out of the part. A part snapshot draws them with the part, culling back faces as its
+    // material says: they stand where the neighbour's surface continues the part, which the
+    // neighbour's card shows only where it has not moved since (without them the snapshot shows
+    // the part's inside through the cut, or with back faces culled, the background).
+    std::uint32_t caps = 0;
   };
   std::vector<Range> ranges;  // [primitive * part_count + part]
+  // The caps' corners (index level vertex count + i): copies of the cut's vertices and of the
+  // openings' centres (bind position the mean of the cut's, weights the cut's summed, four
+  // heaviest kept; normal the mean of the cut's, not unit: across a round opening it interpolates
+  // to the outward normal of the surface that would continue the part there).
+  std::vector<Vertex> cap_vertices;
 };
 
 // The skin as the file stores it, before the loader fixed it up (each vertex keeps its four heaviest
