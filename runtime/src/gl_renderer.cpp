@@ -1181,7 +1181,6 @@ struct Renderer::Impl {
     cut_open = false;
   }
 
-
   void take_snapshots(const FramePlan& plan, bool time_stages);
   void take_snapshot_passes(const FramePlan& plan);  // the draws; sets fits_due
 
@@ -1546,14 +1545,19 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   for (const MeshLod& ml : model.lods) {
     Impl::Lod l;
     // The level's vertices, then its part caps' (PartIndices::cap_vertices).
-    const std::vector<Vertex>& caps = model.part_indices(static_cast<int>(d.lods.size())).cap_vertices;
-    const std::size_t vertices = ml.vertices.size() + (d.parts > 1 ? caps.size() : 0);
+    const std::vector<Vertex>* vertices = &ml.vertices;
+    std::vector<Vertex> with_caps;
+    if (d.parts > 1) {
+      const std::vector<Vertex>& caps = model.part_indices(static_cast<int>(d.lods.size())).cap_vertices;
+      if (!caps.empty()) {
+        with_caps.reserve(ml.vertices.size() + caps.size());
+        with_caps.insert(with_caps.end(), ml.vertices.begin(), ml.vertices.end());
+        with_caps.insert(with_caps.end(), caps.begin(), caps.end());
+        vertices = &with_caps;
+      }
+    }
     glCreateBuffers(1, &l.vbo);
-    glNamedBufferStorage(l.vbo, static_cast<GLsizeiptr>(vertices * sizeof(Vertex)), nullptr, GL_DYNAMIC_STORAGE_BIT);
-    glNamedBufferSubData(l.vbo, 0, static_cast<GLsizeiptr>(ml.vertices.size() * sizeof(Vertex)), ml.vertices.data());
-    if (vertices > ml.vertices.size())
-      glNamedBufferSubData(l.vbo, static_cast<GLintptr>(ml.vertices.size() * sizeof(Vertex)),
-                           static_cast<GLsizeiptr>(caps.size() * sizeof(Vertex)), caps.data());
+    glNamedBufferStorage(l.vbo, static_cast<GLsizeiptr>(vertices->size() * sizeof(Vertex)), vertices->data(), 0);
     glCreateBuffers(1, &l.ibo);
     glNamedBufferStorage(l.ibo, static_cast<GLsizeiptr>(ml.indices.size() * 4), ml.indices.data(), 0);
     glCreateVertexArrays(1, &l.vao_geometry);
