@@ -19,6 +19,7 @@
 #include "bb/runtime/crowd.h"
 #include "bb/runtime/impostor.h"
 #include "step_clip_model.h"
+#include "tube_model.h"
 
 namespace bb::runtime {
 namespace {
@@ -1717,37 +1718,10 @@ TEST(BodyParts, HingeSplitsIntoTwoPartsWithTheirOwnTriangles) {
   EXPECT_EQ(still.body_parts().size(), 2u);
 }
 
-// A closed square tube along y from 0 to 2, split at y = 1 into two parts (the middle ring
-// weighted half to each bone): each part's cut at y = 1 is closed by a fan of 4 triangles from the
+// A closed square tube (tube_model.h) split at y = 1 into two parts: each part's cut at y = 1 is closed by a fan of 4 triangles from the
 // ring's centre, facing out of the part, on vertices of their own after the level's.
 TEST(BodyParts, CutsAreClosedByCapsFacingOutOfTheirPart) {
-  Model m;
-  m.name = "tube";
-  m.nodes = {Node{"root", -1, {}}, Node{"top", 0, {glm::vec3(0, 1, 0), glm::quat(1, 0, 0, 0), glm::vec3(1)}}};
-  m.palette = {PaletteEntry{0, glm::mat4(1)}, PaletteEntry{1, glm::translate(glm::mat4(1), glm::vec3(0, -1, 0))}};
-  MeshLod lod;
-  const glm::vec2 square[4] = {{1, 1}, {1, -1}, {-1, -1}, {-1, 1}};  // (x, z), clockwise from above
-  for (int ring = 0; ring < 3; ++ring)
-    for (const glm::vec2& c : square) {
-      Vertex v;
-      v.position = glm::vec3(c.x, static_cast<float>(ring), c.y);
-      v.normal = glm::normalize(glm::vec3(c.x, 0, c.y));
-      v.joints = glm::u16vec4(ring == 2 ? 1 : 0, 1, 0, 0);
-      v.weights = ring == 1 ? glm::vec4(0.5f, 0.5f, 0, 0) : glm::vec4(1, 0, 0, 0);
-      lod.vertices.push_back(v);
-    }
-  for (std::uint32_t band = 0; band < 2; ++band)
-    for (std::uint32_t i = 0; i < 4; ++i) {
-      const std::uint32_t a = band * 4 + i, b = band * 4 + (i + 1) % 4, c = a + 4, d = b + 4;
-      lod.indices.insert(lod.indices.end(), {a, b, c, b, d, c});  // facing out
-    }
-  lod.indices.insert(lod.indices.end(), {0, 2, 1, 0, 3, 2, 8, 9, 10, 8, 10, 11});  // the ends, facing out
-  lod.primitives = {Primitive{0, static_cast<std::uint32_t>(lod.indices.size()), 0}};
-  m.lods = {lod};
-  m.materials = {Material{}};
-  m.bake(60.0f);
-  const int bones[] = {0, 1};
-  m.set_body_parts(bones);
+  const Model m = tube_model(0.0f);
   ASSERT_EQ(m.body_parts().size(), 2u);
   const PartIndices& pi = m.part_indices(0);
   ASSERT_EQ(pi.ranges.size(), 2u);
