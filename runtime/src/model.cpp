@@ -1,9 +1,11 @@
 // Model: baking the clips for the per-frame paths, the snapshot frame (Ta, radius) and the
 // automatic choice of the posture-test pairs.
 #include <algorithm>
-#include <unordered_map>
+#include <array>
 #include <cmath>
+#include <cstring>
 #include <limits>
+#include <unordered_map>
 
 #include "bb/runtime/animation.h"
 #include "bb/runtime/model.h"
@@ -163,16 +165,17 @@ float ground_speed(const BakedClip& bc, const std::vector<glm::vec3>& track, std
 void add_part_caps(const MeshLod& ml, int parts, PartIndices& pi) {
   const std::size_t nv = ml.vertices.size(), prims = ml.primitives.size();
   const std::size_t np = static_cast<std::size_t>(parts);
-  // Welded vertex ids: the first of each run of equal bind positions, in lexicographic order.
+  // Welded vertex ids: the first of each run of equal bind positions (equal bits, so that a file's
+  // NaN cannot break the order), sorted.
   std::vector<std::uint32_t> order(nv), weld(nv);
-  for (std::uint32_t v = 0; v < nv; ++v) order[v] = v;
-  auto position_less = [&](std::uint32_t a, std::uint32_t b) {
-    const glm::vec3 &p = ml.vertices[a].position, &q = ml.vertices[b].position;
-    return p.x != q.x ? p.x < q.x : p.y != q.y ? p.y < q.y : p.z < q.z;
-  };
-  std::sort(order.begin(), order.end(), position_less);
+  std::vector<std::array<std::uint32_t, 3>> bits(nv);
+  for (std::uint32_t v = 0; v < nv; ++v) {
+    order[v] = v;
+    std::memcpy(bits[v].data(), &ml.vertices[v].position, sizeof bits[v]);
+  }
+  std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return bits[a] < bits[b]; });
   for (std::size_t i = 0; i < nv; ++i)
-    weld[order[i]] = i > 0 && ml.vertices[order[i]].position == ml.vertices[order[i - 1]].position ? weld[order[i - 1]] : order[i];
+    weld[order[i]] = i > 0 && bits[order[i]] == bits[order[i - 1]] ? weld[order[i - 1]] : order[i];
   auto edge = [&](std::uint32_t a, std::uint32_t b) {
     a = weld[a], b = weld[b];
     return (std::uint64_t{std::min(a, b)} << 32) | std::max(a, b);
