@@ -1100,6 +1100,7 @@ struct Renderer::Impl {
     for (std::size_t b = first, end = first + count; b < end;) {
       std::size_t e = b;
       while (e < end && scratch_lod[e] == scratch_lod[b] && scratch_part[e] == scratch_part[b]) ++e;
+      first_cap_of(scratch_part[b] < 0 ? -1 : scratch_lod[b]);
       if (scratch_part[b] < 0) {
         glBindVertexArray(lods[scratch_lod[b]].vao_snapshot);
         draw_lod(shade_snapshot, scratch_lod[b], static_cast<GLsizei>(e - b), static_cast<GLuint>(b));
@@ -1166,19 +1167,24 @@ struct Renderer::Impl {
     auto range = [&](std::size_t k) -> const PartIndices::Range& { return pi.ranges[k * parts + part]; };
     each_primitive(shade_snapshot, ml, Surfaces::kBoth, [&](std::size_t k) { return range(k).count > 0; }, [&](std::size_t k) {
       const PartIndices::Range& r = range(k);
-      const std::size_t v = ShadeProgram::variant(model->materials[ml.primitives[k].material]);
-      if (shade_snapshot.first_cap[v] >= 0)
-        glProgramUniform1i(shade_snapshot.prog[v], shade_snapshot.first_cap[v], static_cast<GLint>(ml.vertices.size()));
       const std::uint32_t n = r.count + r.caps;
       glDrawElementsInstancedBaseInstance(GL_TRIANGLES, static_cast<GLsizei>(n), GL_UNSIGNED_INT,
                                           reinterpret_cast<const void*>(static_cast<std::uintptr_t>(r.first) * 4), count,
                                           base_instance);
       drew_indices(static_cast<std::size_t>(n) * static_cast<std::size_t>(count));
     });
-    for (std::size_t v = 0; v < kShadeVariants; ++v)  // whole snapshots have no caps
-      if (shade_snapshot.prog[v] && shade_snapshot.first_cap[v] >= 0)
-        glProgramUniform1i(shade_snapshot.prog[v], shade_snapshot.first_cap[v], 0x7fffffff);
     cut_open = false;
+  }
+
+  // The snapshot shader's u_first_cap for level `lod`'s part snapshots (its vertex count: the caps'
+  // vertices follow), or for whole snapshots (-1: none), set where it changes.
+  int first_cap_lod = -1;
+  void first_cap_of(int lod) {
+    if (lod == first_cap_lod) return;
+    const GLint first = lod < 0 ? 0x7fffffff : static_cast<GLint>(model->lods[lod].vertices.size());
+    for (std::size_t v = 0; v < kShadeVariants; ++v)
+      if (shade_snapshot.prog[v] && shade_snapshot.first_cap[v] >= 0) glProgramUniform1i(shade_snapshot.prog[v], shade_snapshot.first_cap[v], first);
+    first_cap_lod = lod;
   }
 
   void take_snapshots(const FramePlan& plan, bool time_stages);
