@@ -140,7 +140,7 @@ int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
   j["textures"] = m.textures.size();
   // The body parts impostor part cards would carry (Model::body_parts): each part's bone, joints, share
   // of the skin weight and triangles at the finest level (a part's own, and those it overlaps at its
-  // joints); under kFewTrianglesPerPart triangles a part on average (part_triangles), the text says
+  // joints; cap_triangles: those that close its cuts, PartIndices::Range::caps); under kFewTrianglesPerPart triangles a part on average (part_triangles), the text says
   // part cards gain little there, as flow --impostor-parts does.
   nlohmann::ordered_json parts = nlohmann::ordered_json::array();
   if (!m.lods.empty()) {
@@ -148,14 +148,18 @@ int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
     const std::size_t np = m.body_parts().size(), nprim = m.lods.front().primitives.size();
     for (std::size_t p = 0; p < np; ++p) {
       const runtime::BodyPart& bp = m.body_parts()[p];
-      std::size_t triangles = 0;
-      for (std::size_t k = 0; k < nprim && k * np + p < pi.ranges.size(); ++k) triangles += pi.ranges[k * np + p].count / 3;
+      std::size_t triangles = 0, caps = 0;
+      for (std::size_t k = 0; k < nprim && k * np + p < pi.ranges.size(); ++k) {
+        triangles += pi.ranges[k * np + p].count / 3;
+        caps += pi.ranges[k * np + p].caps / 3;
+      }
       const std::size_t node = static_cast<std::size_t>(m.palette[static_cast<std::size_t>(bp.bone)].node);
       const std::string& name = m.nodes[node].name;
       parts.push_back({{"bone", name.empty() ? "node " + std::to_string(node) : name},
                        {"joints", bp.joints.size()},
                        {"skin_share", bp.mass},
-                       {"triangles", triangles}});
+                       {"triangles", triangles},
+                       {"cap_triangles", caps}});
     }
   }
   j["body_parts"] = parts;

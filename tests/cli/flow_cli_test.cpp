@@ -882,13 +882,15 @@ TEST(FlowCli, PartCardsOnFewTrianglesAPartAreNoted) {
   const auto parts = nlohmann::json::parse(i.text)["body_parts"];
   ASSERT_EQ(parts.size(), 16u) << parts.dump();
   double share = 0.0;
-  std::size_t triangles = 0;
+  std::size_t triangles = 0, caps = 0;
   for (const auto& p : parts) {
     share += p["skin_share"].get<double>();
     triangles += p["triangles"].get<std::size_t>();
+    caps += p["cap_triangles"].get<std::size_t>();
   }
   EXPECT_NEAR(share, 1.0, 1e-4);
   EXPECT_GE(triangles, 576u);  // every triangle in a part, those at the joints in two
+  EXPECT_EQ(caps, 250u);       // a fan over each of the parts' 26 openings
   Out t = run("inspect " + dir + "Fox.glb");
   EXPECT_NE(t.text.find("body parts (flow --impostor-parts): 16, 36 triangles each on average at level 0 (few:"), std::string::npos)
       << t.text;
