@@ -1452,9 +1452,10 @@ FramePlanner::PartCache FramePlanner::part_card(const PartJob& job, const Charac
   s.part.x = static_cast<float>(p);
   const std::size_t prims = m.lods[static_cast<std::size_t>(job.slod)].primitives.size();
   tris = 0;
-  for (std::size_t k = 0; k < prims; ++k)
-    tris += (pi.ranges[k * static_cast<std::size_t>(parts_) + static_cast<std::size_t>(p)].count +
-             pi.ranges[k * static_cast<std::size_t>(parts_) + static_cast<std::size_t>(p)].caps) / 3;  // caps too
+  for (std::size_t k = 0; k < prims; ++k) {
+    const PartIndices::Range& range = pi.ranges[k * static_cast<std::size_t>(parts_) + static_cast<std::size_t>(p)];
+    tris += (range.count + range.caps) / 3;  // its caps drawn too
+  }
   return next;
 }
 

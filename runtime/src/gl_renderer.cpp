@@ -842,7 +842,10 @@ struct Renderer::Impl {
       for (const Primitive& p : ml.primitives) n += p.index_count;
     } else {
       const PartIndices& pi = model->part_indices(lod);
-      for (std::size_t k = 0; k < ml.primitives.size(); ++k) n += pi.ranges[k * parts + part].count + pi.ranges[k * parts + part].caps;
+      for (std::size_t k = 0; k < ml.primitives.size(); ++k) {
+        const PartIndices::Range& r = pi.ranges[k * parts + part];
+        n += r.count + r.caps;
+      }
     }
     return n;
   }
