@@ -1548,17 +1548,7 @@ Model hinge_model() {
   lod.primitives = {Primitive{0, 6, 0}};
   m.lods = {lod};
   m.materials = {Material{}};
-  Clip clip;
-  clip.name = "bend";
-  clip.duration = 1.0f;
-  Channel c;
-  c.node = 1;
-  c.path = ChannelPath::kRotation;
-  c.times = {0.0f, 1.0f};
-  const glm::quat q = glm::angleAxis(glm::radians(90.0f), glm::vec3(0, 0, 1));
-  c.values = {{0, 0, 0, 1}, {q.x, q.y, q.z, q.w}};
-  clip.channels = {c};
-  m.clips = {clip};
+  m.clips = {bend_clip(1, 90.0f)};
   m.bake(60.0f);
   return m;
 }

@@ -1,5 +1,5 @@
-// Tests: a closed square tube of two body parts (impostor_test.cpp: the caps over the parts' cuts;
-// render_test.cpp: the caps drawn).
+// Tests: a bending clip, and a closed square tube of two body parts (impostor_test.cpp: the caps over
+// the parts' cuts, and the hinge's clip; render_test.cpp: the caps drawn).
 #pragma once
 
 #include <cstdint>
@@ -12,6 +12,21 @@
 #include "bb/runtime/model.h"
 
 namespace bb::runtime {
+
+// A 1 s clip "bend" that turns node `node` about z from 0 to `deg` degrees.
+inline Clip bend_clip(int node, float deg) {
+  Clip clip;
+  clip.name = "bend";
+  clip.duration = 1.0f;
+  Channel c;
+  c.node = node;
+  c.path = ChannelPath::kRotation;
+  c.times = {0.0f, 1.0f};
+  const glm::quat q = glm::angleAxis(glm::radians(deg), glm::vec3(0, 0, 1));
+  c.values = {{0, 0, 0, 1}, {q.x, q.y, q.z, q.w}};
+  clip.channels = {c};
+  return clip;
+}
 
 // A closed square tube along y from 0 to 2 m, 2 m wide, its faces wound out: the bottom ring on the
 // root joint, the top ring on a joint at y = 1, the middle ring half on each. A 1 s clip "bend" turns
@@ -41,17 +56,7 @@ inline Model tube_model(float bend_deg) {
   lod.primitives = {Primitive{0, static_cast<std::uint32_t>(lod.indices.size()), 0}};
   m.lods = {lod};
   m.materials = {Material{}};
-  Clip clip;
-  clip.name = "bend";
-  clip.duration = 1.0f;
-  Channel c;
-  c.node = 1;
-  c.path = ChannelPath::kRotation;
-  c.times = {0.0f, 1.0f};
-  const glm::quat q = glm::angleAxis(glm::radians(bend_deg), glm::vec3(0, 0, 1));
-  c.values = {{0, 0, 0, 1}, {q.x, q.y, q.z, q.w}};
-  clip.channels = {c};
-  m.clips = {clip};
+  m.clips = {bend_clip(1, bend_deg)};
   m.bake(60.0f);
   const int bones[] = {0, 1};
   m.set_body_parts(bones);
