@@ -140,8 +140,9 @@ int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
   j["textures"] = m.textures.size();
   // The body parts impostor part cards would carry (Model::body_parts): each part's bone, joints, share
   // of the skin weight and triangles at the finest level (a part's own, and those it overlaps at its
-  // joints; cap_triangles: those that close its cuts, PartIndices::Range::caps); under kFewTrianglesPerPart triangles a part on average (part_triangles), the text says
-  // part cards gain little there, as flow --impostor-parts does.
+  // joints; cap_triangles: those that close its cuts, PartIndices::Range::caps); under
+  // kFewTrianglesPerPart triangles a part on average (part_triangles), the text says part cards gain
+  // little there, as flow --impostor-parts does.
   nlohmann::ordered_json parts = nlohmann::ordered_json::array();
   if (!m.lods.empty()) {
     const runtime::PartIndices& pi = m.part_indices(0);

@@ -158,11 +158,12 @@ layout(location = 1) out vec4 o_normal;
 flat in vec3 v_vo;
 #endif
 #ifdef BB_SNAPSHOT
-// 1 while a body part's snapshot is drawn (both faces): a back face seen through the part's cut
-// stands in for the neighbouring surface that continues it there, the near side of the tube, so it
-// is lit with its normal mirrored across the view direction (the near side's normal where the part
-// is a cylinder about the line of sight's normal) instead of reversed, which turns its side away
-// from the light (dark slivers at the joints).
+// 1 while a body part's snapshot is drawn: a back face of a double-sided material (the others are
+// culled, their cuts closed by caps) seen through the part's cut stands in for the neighbouring
+// surface that continues it there, the near side of the tube, so it is lit with its normal mirrored
+// across the view direction (the near side's normal where the part is a cylinder about the line of
+// sight's normal) instead of reversed, which turns its side away from the light (dark slivers at
+// the joints).
 uniform float u_cut;
 // 1 on a body part's cap (PartIndices::Range::caps): it stands for the surface that continues the
 // part through its cut, whose normal, seen from the snapshot camera, is the cap's interpolated one
