@@ -1242,6 +1242,7 @@ Result<Model> load_model(const std::string& path, const LoadOptions& options) {
     return Error{path, "", std::string("cannot build the model: ") + e.what()};
   }
   add_generated_lods(model, options);
+  if (options.optimize_vertex_order) optimize_vertex_order(model);
   model.bake(options.bake_rate);
   return model;
 }

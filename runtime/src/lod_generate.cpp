@@ -1,5 +1,6 @@
 // Levels of detail made at load for a model whose file has one level (LoadOptions::lod_levels), so
-// that the geometry path can draw anyone's model as it draws ours: finer up close, coarser far away.
+// that the geometry path can draw anyone's model as it draws ours: finer up close, coarser far away;
+// and every level's triangles and vertices put in vertex cache order (LoadOptions::optimize_vertex_order).
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -196,6 +197,33 @@ int add_generated_lods(Model& model, const LoadOptions& options) {
   }
   model.lods.back().screen_coverage = 0.0f;
   return added;
+}
+
+void optimize_vertex_order(Model& model) {
+  std::vector<std::uint32_t> out;
+  std::vector<unsigned int> remap;
+  std::vector<Vertex> moved;
+  for (MeshLod& ml : model.lods) {
+    if (ml.indices.empty() || ml.vertices.empty()) continue;
+    for (const Primitive& p : ml.primitives) {
+      // A blended primitive's triangles blend in the file's order, which its author may have chosen.
+      if (model.materials[static_cast<std::size_t>(p.material)].alpha_blend || p.index_count < 6) continue;
+      std::uint32_t* first = ml.indices.data() + p.first_index;
+      out.resize(p.index_count);
+      meshopt_optimizeVertexCache(out.data(), first, p.index_count, ml.vertices.size());
+      std::copy(out.begin(), out.end(), first);
+    }
+    // The vertices in the order the triangles first use them (the level's primitives share them);
+    // vertices no triangle uses are dropped.
+    remap.assign(ml.vertices.size(), 0);
+    const std::size_t used = meshopt_optimizeVertexFetchRemap(remap.data(), ml.indices.data(), ml.indices.size(),
+                                                              ml.vertices.size());
+    moved.assign(used, Vertex{});
+    for (std::size_t k = 0; k < ml.vertices.size(); ++k)
+      if (remap[k] != ~0u) moved[remap[k]] = ml.vertices[k];
+    for (std::uint32_t& i : ml.indices) i = remap[i];
+    ml.vertices.swap(moved);
+  }
 }
 
 }  // namespace bb::runtime

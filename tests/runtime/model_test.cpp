@@ -1,13 +1,16 @@
 // Loading and animating skinned glTF: exact answers on SimpleSkin and hand-made channels, properties
 // on the real models, and every malformed validator file rejected cleanly (never a crash).
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <set>
+#include <span>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -406,6 +409,19 @@ TEST(GroundSpeed, SharedModels) {
   EXPECT_EQ(speeds("SimpleSkin.gltf"), std::vector<float>{0.0f});
 }
 
+// The (n + 1)^2 vertices of a unit grid in the z = 0 plane, row by row, normals +z.
+std::vector<Vertex> grid_vertices(int n) {
+  std::vector<Vertex> out;
+  for (int y = 0; y <= n; ++y)
+    for (int x = 0; x <= n; ++x) {
+      Vertex v;
+      v.position = {x / float(n), y / float(n), 0.0f};
+      v.normal = {0, 0, 1};
+      out.push_back(v);
+    }
+  return out;
+}
+
 // LoadOptions::lod_levels on a flat 16 x 16 grid of quads (a model with one level): the simplifier takes
 // the inside away without error and keeps the border, so every level it makes lies in the grid's plane,
 // with about half the triangles of the one before and the whole border; with no error, the finer level
@@ -416,13 +432,7 @@ TEST(GeneratedLods, AFlatGridLosesNothing) {
   m.palette = {PaletteEntry{0, glm::mat4(1)}};
   MeshLod lod;
   const int n = 16;
-  for (int y = 0; y <= n; ++y)
-    for (int x = 0; x <= n; ++x) {
-      Vertex v;
-      v.position = {x / float(n), y / float(n), 0.0f};
-      v.normal = {0, 0, 1};
-      lod.vertices.push_back(v);
-    }
+  lod.vertices = grid_vertices(n);
   for (int y = 0; y < n; ++y)
     for (int x = 0; x < n; ++x) {
       const std::uint32_t a = y * (n + 1) + x, b = a + 1, c = a + n + 1, d = c + 1;
@@ -578,6 +588,106 @@ TEST(GeneratedLods, SharedModels) {
     }
     EXPECT_EQ(unknown, 0u);
   }
+}
+
+// Vertices shaded per triangle by a FIFO post-transform cache of `size` entries.
+double fifo_misses_per_triangle(std::span<const std::uint32_t> indices, std::size_t size) {
+  std::vector<std::uint32_t> fifo;
+  std::size_t misses = 0;
+  for (std::uint32_t i : indices) {
+    if (std::find(fifo.begin(), fifo.end(), i) != fifo.end()) continue;
+    ++misses;
+    fifo.push_back(i);
+    if (fifo.size() > size) fifo.erase(fifo.begin());
+  }
+  return indices.empty() ? 0.0 : 3.0 * static_cast<double>(misses) / static_cast<double>(indices.size());
+}
+
+// A primitive's triangles as corner positions, each rotated to start at its smallest corner (the
+// winding kept), sorted: the same list whatever order the triangles and vertices are in.
+std::vector<std::array<float, 9>> triangle_set(const MeshLod& ml, const Primitive& p) {
+  std::vector<std::array<float, 9>> out;
+  for (std::uint32_t t = p.first_index; t < p.first_index + p.index_count; t += 3) {
+    std::array<glm::vec3, 3> c{ml.vertices[ml.indices[t]].position, ml.vertices[ml.indices[t + 1]].position,
+                               ml.vertices[ml.indices[t + 2]].position};
+    auto less = [](glm::vec3 a, glm::vec3 b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); };
+    const int first = static_cast<int>(std::min_element(c.begin(), c.end(), less) - c.begin());
+    std::array<float, 9> f{};
+    for (int k = 0; k < 3; ++k)
+      for (int a = 0; a < 3; ++a) f[static_cast<std::size_t>(k * 3 + a)] = c[static_cast<std::size_t>((first + k) % 3)][a];
+    out.push_back(f);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// optimize_vertex_order on a 16x16 grid whose triangles come in a scrambled order, beside a blended
+// primitive and a vertex no triangle uses: the same triangles with their winding, fewer vertices
+// shaded, vertices numbered in first use, the blended primitive's triangles in the file's order.
+TEST(VertexOrder, CacheOrderKeepsTheTrianglesAndShadesFewerVertices) {
+  Model m;
+  m.materials = {Material{}, Material{}};
+  m.materials[1].alpha_blend = true;
+  MeshLod lod;
+  const int n = 16;
+  lod.vertices = grid_vertices(n);
+  std::vector<std::array<std::uint32_t, 3>> tris;
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) {
+      const std::uint32_t a = y * (n + 1) + x, b = a + 1, c = a + n + 1, d = c + 1;
+      tris.push_back({a, b, d});
+      tris.push_back({a, d, c});
+    }
+  for (std::size_t k = 0; k < tris.size(); ++k) std::swap(tris[k], tris[(k * 7919 + 13) % tris.size()]);  // scrambled
+  for (const auto& t : tris) lod.indices.insert(lod.indices.end(), t.begin(), t.end());
+  const std::uint32_t opaque = static_cast<std::uint32_t>(lod.indices.size());
+  Vertex lone;  // used by no triangle
+  lone.position = {5, 5, 5};
+  lod.vertices.push_back(lone);
+  const std::vector<std::uint32_t> blended{288, 0, 17, 16, 280, 5};  // two triangles over the grid, in this order
+  lod.indices.insert(lod.indices.end(), blended.begin(), blended.end());
+  lod.primitives = {Primitive{0, opaque, 0}, Primitive{opaque, 6, 1}};
+  m.lods = {lod};
+  const double before = fifo_misses_per_triangle(std::span(lod.indices).first(opaque), 16);
+
+  optimize_vertex_order(m);
+  const MeshLod& out = m.lods[0];
+  ASSERT_EQ(out.primitives.size(), 2u);
+  EXPECT_EQ(out.vertices.size(), lod.vertices.size() - 1);  // the lone vertex dropped
+  EXPECT_EQ(triangle_set(out, out.primitives[0]), triangle_set(lod, lod.primitives[0]));
+  std::uint32_t next = 0;  // first-use numbering: each new vertex is the next number
+  for (std::uint32_t i : out.indices) {
+    ASSERT_LE(i, next);
+    if (i == next) ++next;
+  }
+  for (std::size_t k = 0; k < blended.size(); ++k)  // the blended triangles, corner for corner
+    EXPECT_EQ(out.vertices[out.indices[opaque + k]].position, lod.vertices[blended[k]].position) << k;
+  const double after = fifo_misses_per_triangle(std::span(out.indices).first(opaque), 16);
+  std::printf("16x16 grid, scrambled: %.2f vertices shaded a triangle by a 16-entry FIFO, %.2f in cache order\n", before,
+              after);
+  EXPECT_GT(before, 2.5);
+  EXPECT_LT(after, 0.8);  // a grid's vertices are about half its triangles
+}
+
+// CesiumMan's file is in no cache order: the loader's order shades far fewer vertices, and draws
+// the same triangles.
+TEST(VertexOrder, CesiumManShadesFewerVertices) {
+  const std::string path = gltf_dir() + "/CesiumMan.glb";
+  REQUIRE_SHARED(path);
+  LoadOptions file_order;
+  file_order.optimize_vertex_order = false;
+  auto a = load_model(path, file_order);
+  auto b = load_model(path);
+  ASSERT_TRUE(a.ok() && b.ok());
+  const MeshLod &la = a->lods[0], &lb = b->lods[0];
+  ASSERT_EQ(la.primitives.size(), lb.primitives.size());
+  for (std::size_t k = 0; k < la.primitives.size(); ++k)
+    EXPECT_EQ(triangle_set(la, la.primitives[k]), triangle_set(lb, lb.primitives[k]));
+  const double fa = fifo_misses_per_triangle(la.indices, 32), fb = fifo_misses_per_triangle(lb.indices, 32);
+  std::printf("CesiumMan: %.2f vertices shaded a triangle by a 32-entry FIFO in the file's order, %.2f in cache order "
+              "(%zu vertices, %zu triangles)\n", fa, fb, lb.vertices.size(), lb.triangle_count());
+  EXPECT_GT(fa, 1.8);
+  EXPECT_LT(fb, 1.0);
 }
 
 TEST(LoadModel, PosturePairsOverride) {
