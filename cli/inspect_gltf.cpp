@@ -77,6 +77,10 @@ int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
   }
   const runtime::Model& m = *model;
   const runtime::SkinReport& skin = m.skin_report;
+  // The levels as the file stores them (and as the simplifier makes them), for the vertex cache's
+  // figures: the runtime draws them reordered (LoadOptions::optimize_vertex_order).
+  options.optimize_vertex_order = false;
+  auto stored = runtime::load_model(path, options);
   // Model height: the rest pose's extent along Y. The Hausdorff distances are measured between the
   // levels' bind-space vertices and scaled by the ratio of the two extents (a similarity, such as a
   // quantized mesh's, keeps that ratio).
@@ -109,6 +113,9 @@ int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
     j["hausdorff_rel"] = h;
     j["textured"] = std::any_of(lod.primitives.begin(), lod.primitives.end(),
                                 [&](const runtime::Primitive& p) { return m.materials[p.material].texture >= 0; });
+    // Vertices shaded per triangle by a 32-entry FIFO cache, as stored and as the runtime draws them.
+    j["vertex_cache"] = {{"as_stored", stored && l < stored->lods.size() ? runtime::vertices_shaded_per_triangle(stored->lods[l]) : 0.0f},
+                         {"as_drawn", runtime::vertices_shaded_per_triangle(lod)}};
     lods.push_back(j);
   }
   nlohmann::ordered_json anims = nlohmann::ordered_json::array();
@@ -180,6 +187,15 @@ int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
                 l["vertices"].get<size_t>(), l["screen_coverage"].get<double>(), l["closed"].get<bool>() ? "yes" : "no",
                 l["manifold"].get<bool>() ? "yes" : "no", l["self_intersections"].get<size_t>(),
                 l["hausdorff_rel"].get<double>(), l["textured"].get<bool>() ? "yes" : "no");
+  std::string cache;
+  for (const auto& l : lods) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%s%.2f -> %.2f", cache.empty() ? "" : ", ", l["vertex_cache"]["as_stored"].get<double>(),
+                  l["vertex_cache"]["as_drawn"].get<double>());
+    cache += buf;
+  }
+  std::printf("vertex cache, vertices shaded a triangle (32-entry FIFO), as stored -> as drawn, level by level: %s\n",
+              cache.c_str());
   for (std::size_t k = 0; k < m.clips.size(); ++k) {
     const float v = m.baked_clips()[k].ground_speed;
     std::printf("animation %s: %.3f s, %s\n", m.clips[k].name.c_str(), m.clips[k].duration,

@@ -226,4 +226,9 @@ void optimize_vertex_order(Model& model) {
   }
 }
 
+float vertices_shaded_per_triangle(const MeshLod& lod, unsigned cache_size) {
+  if (lod.indices.size() < 3 || lod.vertices.empty()) return 0.0f;
+  return meshopt_analyzeVertexCache(lod.indices.data(), lod.indices.size(), lod.vertices.size(), cache_size, 0, 0).acmr;
+}
+
 }  // namespace bb::runtime
