@@ -70,6 +70,9 @@ std::vector<glm::vec3> rest_positions(const runtime::Model& m) {
 int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
   runtime::LoadOptions options;
   options.lod_levels = lod_levels;
+  // The levels in the file's order (and the simplifier's, for those made at load), so that the
+  // vertex cache's figure can be given both as stored and as the runtime draws them (`drawn`).
+  options.optimize_vertex_order = false;
   auto model = runtime::load_model(path, options);
   if (!model) {
     std::cerr << "bodybuilder inspect: " << model.error().message() << "\n";
@@ -77,10 +80,10 @@ int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
   }
   const runtime::Model& m = *model;
   const runtime::SkinReport& skin = m.skin_report;
-  // The levels as the file stores them (and as the simplifier makes them), for the vertex cache's
-  // figures: the runtime draws them reordered (LoadOptions::optimize_vertex_order).
-  options.optimize_vertex_order = false;
-  auto stored = runtime::load_model(path, options);
+  runtime::Model drawn;  // its levels as load_model orders them by default (LoadOptions::optimize_vertex_order)
+  drawn.materials = m.materials;
+  drawn.lods = m.lods;
+  runtime::optimize_vertex_order(drawn);
   // Model height: the rest pose's extent along Y. The Hausdorff distances are measured between the
   // levels' bind-space vertices and scaled by the ratio of the two extents (a similarity, such as a
   // quantized mesh's, keeps that ratio).
@@ -114,8 +117,8 @@ int inspect_gltf(const std::string& path, bool as_json, int lod_levels) {
     j["textured"] = std::any_of(lod.primitives.begin(), lod.primitives.end(),
                                 [&](const runtime::Primitive& p) { return m.materials[p.material].texture >= 0; });
     // Vertices shaded per triangle by a 32-entry FIFO cache, as stored and as the runtime draws them.
-    j["vertex_cache"] = {{"as_stored", stored && l < stored->lods.size() ? runtime::vertices_shaded_per_triangle(stored->lods[l]) : 0.0f},
-                         {"as_drawn", runtime::vertices_shaded_per_triangle(lod)}};
+    j["vertex_cache"] = {{"as_stored", runtime::vertices_shaded_per_triangle(lod)},
+                         {"as_drawn", runtime::vertices_shaded_per_triangle(drawn.lods[l])}};
     lods.push_back(j);
   }
   nlohmann::ordered_json anims = nlohmann::ordered_json::array();
