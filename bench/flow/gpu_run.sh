@@ -506,6 +506,24 @@ set_s42() {
     done
   done
 }
+# Fifty-second session: the present code (back faces culled, triangles in vertex cache order, taps
+# kept on their own quad, everything since the thirty-ninth) against the targets, in order of importance.
+set_s52() {
+  local q="--impostor-parts --texels-per-pixel 2 --impostor-edges blend --card-depth pass"
+  flow e52_main $C4 --frames 120
+  flow e52_worst $C4 --frames 60 --posture 0 --view 0
+  flow e52_sweep_view $C4 --frames 60 --sweep view
+  flow e52_scaling_1 $C4 --frames 2 --gpu-stages --scaling --scaling-humans 20,100,1000,2000,5000,10000 --scaling-frames 8
+  flow e52_sweep_view_h1000 $C4 --frames 40 --humans 1000 --sweep view
+  flow e52_rs --model $M/RiggedSimple.gltf --frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 16
+  flow e52_parts_8 $C4 --frames 60 --view 8 --posture off --impostor-parts
+  flow e52_best_8 $C4 --frames 60 --view 8 --posture off $q
+  flow e52_cesium --model $M/CesiumMan.glb --frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 16
+  flow e52_fox --model $M/Fox.glb --frames 2 --scaling --scaling-humans 1000,10000 --scaling-frames 16
+  flow e52_worst_h1000 $C4 --frames 30 --humans 1000 --posture 0 --view 0
+  flow e52_scaling_2 $C4 --frames 2 --gpu-stages --scaling --scaling-humans 20,100,1000,2000,5000,10000 --scaling-frames 8
+  flow e52_sweep_posture_h1000 $C4 --frames 40 --humans 1000 --sweep posture
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"
