@@ -746,8 +746,10 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     c.x_label = "humans";
     c.y_label = "milliseconds per frame";
     c.log_x = c.log_y = true;
-    c.series = {g, im};
-    if (unweighted) c.series.push_back(iu);
+    // Only the paths that ran (--mode geometry or impostor measures one).
+    if (s.geometry) c.series.push_back(g);
+    if (s.impostor) c.series.push_back(im);
+    if (unweighted && s.impostor) c.series.push_back(iu);
     auto img = render_chart(c, 1000, 600);
     for (auto st : {write_text(base + ".csv", csv.str()), write_text(base + ".json", json_text(scaling, 2) + "\n"),
                     write_png(base + ".png", 1000, 600, img.data())})

@@ -101,20 +101,30 @@ std::vector<double> log_ticks(double lo, double hi) {
 std::vector<unsigned char> render_chart(const Chart& c, int width, int height) {
   Canvas cv(width, height);
   const int left = 90, right = 20, top = 70, bottom = 70;
+  // A point a chart cannot place (not finite, or not positive on a logarithmic axis) is left out,
+  // and the series' line breaks there.
+  auto placeable = [&](double x, double y) {
+    return std::isfinite(x) && std::isfinite(y) && (!c.log_x || x > 0) && (!c.log_y || y > 0);
+  };
   double x_lo = 1e300, x_hi = -1e300, y_lo = 1e300, y_hi = -1e300;
   for (const auto& s : c.series)
     for (size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
-      if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i])) continue;
+      if (!placeable(s.x[i], s.y[i])) continue;
       x_lo = std::min(x_lo, s.x[i]); x_hi = std::max(x_hi, s.x[i]);
       y_lo = std::min(y_lo, s.y[i]); y_hi = std::max(y_hi, s.y[i]);
     }
-  for (double h : c.hlines) { y_lo = std::min(y_lo, h); y_hi = std::max(y_hi, h); }
-  for (double v : c.vlines) { x_lo = std::min(x_lo, v); x_hi = std::max(x_hi, v); }
-  if (x_lo > x_hi) { x_lo = 0; x_hi = 1; y_lo = 0; y_hi = 1; }
+  for (double h : c.hlines)
+    if (placeable(c.log_x ? 1 : 0, h)) { y_lo = std::min(y_lo, h); y_hi = std::max(y_hi, h); }
+  for (double v : c.vlines)
+    if (placeable(v, c.log_y ? 1 : 0)) { x_lo = std::min(x_lo, v); x_hi = std::max(x_hi, v); }
+  if (x_lo > x_hi) { x_lo = c.log_x ? 1 : 0; x_hi = c.log_x ? 10 : 1; }
+  if (y_lo > y_hi) { y_lo = c.log_y ? 1 : 0; y_hi = c.log_y ? 10 : 1; }
   if (c.y_min != 0 || c.y_max != 0) { y_lo = c.y_min; y_hi = c.y_max; }
   else if (!c.log_y) { y_lo = std::min(0.0, y_lo); y_hi = y_hi + 0.08 * (y_hi - y_lo); }
-  if (x_hi == x_lo) { x_lo -= 1; x_hi += 1; }
-  if (y_hi == y_lo) { y_hi = y_lo + 1; }
+  if (x_hi == x_lo) {
+    if (c.log_x) { x_lo /= 10; x_hi *= 10; } else { x_lo -= 1; x_hi += 1; }
+  }
+  if (y_hi == y_lo) { y_hi = c.log_y ? y_lo * 10 : y_lo + 1; }
   auto tx = [&](double v) { return c.log_x ? std::log10(v) : v; };
   auto ty = [&](double v) { return c.log_y ? std::log10(v) : v; };
   double X0 = tx(x_lo), X1 = tx(x_hi), Y0 = ty(c.log_y ? y_lo * 0.8 : y_lo), Y1 = ty(c.log_y ? y_hi * 1.25 : y_hi);
@@ -123,7 +133,8 @@ std::vector<unsigned char> render_chart(const Chart& c, int width, int height) {
   auto sy = [&](double v) { return static_cast<float>(top + ph - (ty(v) - Y0) / (Y1 - Y0) * ph); };
 
   cv.text((width - Canvas::text_width(c.title, 2.5f)) / 2, 14, c.title, 0x222222, 2.5f);
-  const bool corner = !c.corner_label.empty() && !c.hlines.empty() && !c.vlines.empty();
+  const bool corner = !c.corner_label.empty() && !c.hlines.empty() && !c.vlines.empty() &&
+                      placeable(c.vlines[0], c.hlines[0]);
   if (corner)
     cv.rect(static_cast<int>(sx(c.vlines[0])), top, static_cast<int>(left + pw),
             static_cast<int>(std::max(static_cast<float>(top), sy(c.hlines[0]))), 0xe3f2e3);
@@ -146,8 +157,10 @@ std::vector<unsigned char> render_chart(const Chart& c, int width, int height) {
   }
   if (corner)
     cv.text(sx(c.vlines[0]) + 8, std::max(static_cast<float>(top) + 4, sy(c.hlines[0]) - 20.0f), c.corner_label, 0x2a7a2a);
-  for (double h : c.hlines) cv.line(static_cast<float>(left), sy(h), left + pw, sy(h), 0x888888, 1.5f);
-  for (double v : c.vlines) cv.line(sx(v), static_cast<float>(top), sx(v), top + ph, 0x888888, 1.5f);
+  for (double h : c.hlines)
+    if (placeable(c.log_x ? 1 : 0, h)) cv.line(static_cast<float>(left), sy(h), left + pw, sy(h), 0x888888, 1.5f);
+  for (double v : c.vlines)
+    if (placeable(v, c.log_y ? 1 : 0)) cv.line(sx(v), static_cast<float>(top), sx(v), top + ph, 0x888888, 1.5f);
   cv.line(static_cast<float>(left), static_cast<float>(top), static_cast<float>(left), top + ph, 0x222222, 1.5f);
   cv.line(static_cast<float>(left), top + ph, left + pw, top + ph, 0x222222, 1.5f);
   cv.text(left + (pw - Canvas::text_width(c.x_label)) / 2, static_cast<float>(height - 30), c.x_label, 0x222222);
@@ -156,8 +169,10 @@ std::vector<unsigned char> render_chart(const Chart& c, int width, int height) {
   // Series.
   for (const auto& s : c.series) {
     for (size_t i = 0; i + 1 < s.x.size() && i + 1 < s.y.size(); ++i)
-      cv.line(sx(s.x[i]), sy(s.y[i]), sx(s.x[i + 1]), sy(s.y[i + 1]), s.color, 2.5f);
+      if (placeable(s.x[i], s.y[i]) && placeable(s.x[i + 1], s.y[i + 1]))
+        cv.line(sx(s.x[i]), sy(s.y[i]), sx(s.x[i + 1]), sy(s.y[i + 1]), s.color, 2.5f);
     for (size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
+      if (!placeable(s.x[i], s.y[i])) continue;
       int x = static_cast<int>(sx(s.x[i])), y = static_cast<int>(sy(s.y[i]));
       cv.rect(x - 3, y - 3, x + 4, y + 4, s.color);
     }

@@ -65,3 +65,29 @@ TEST(Chart, TheCornerOfTheReferenceLinesIsShaded) {
   EXPECT_EQ(outside, 0);
   EXPECT_GT(grey_rows, 200);  // the vertical line, nearly the plot's height of 260
 }
+
+// A logarithmic axis cannot place zero or negative values (flow --mode impostor --scaling has a
+// geometry time of 0): those points are left out, with the line broken there, and the rest drawn.
+// The chart took the log of 0 for its ticks before and ran out of memory.
+TEST(Chart, LogAxesLeaveOutWhatTheyCannotPlace) {
+  Chart c;
+  c.log_x = c.log_y = true;
+  c.series.push_back({"zeros", {20, 100, 1000}, {0, 0, -1}, 0xff0000});
+  c.series.push_back({"times", {20, 100, 0, 1000}, {1, 3, 5, 30}, 0x0000ff});
+  c.hlines = {0};
+  auto px = render_chart(c, 400, 300);
+  ASSERT_EQ(px.size(), 400u * 300 * 4);
+  size_t red = 0, blue = 0;
+  for (size_t i = 0; i < px.size(); i += 4) {
+    red += px[i] == 255 && px[i + 1] == 0 && px[i + 2] == 0;
+    blue += px[i] == 0 && px[i + 1] == 0 && px[i + 2] == 255;
+  }
+  // The legend's line of the zero series is all of its colour: 22 by 3 pixels and anti-aliased ends.
+  EXPECT_LT(red, 120u);
+  EXPECT_GT(blue, 200u);
+  // Nothing placeable at all: an empty frame, not a crash.
+  Chart none;
+  none.log_x = none.log_y = true;
+  none.series.push_back({"zeros", {0, 0}, {0, 0}, 0xff0000});
+  EXPECT_EQ(render_chart(none, 200, 100).size(), 200u * 100 * 4);
+}

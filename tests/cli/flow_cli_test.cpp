@@ -1130,6 +1130,27 @@ TEST(FlowCli, WindowSizesChooseTheAtlasWindows) {
   EXPECT_LE(ours, 2);
 }
 
+// --scaling with one path measures that path alone at each crowd size, and its chart plots only it
+// (the other path's 0 ms broke the chart's logarithmic axis: flow aborted after the runs).
+TEST(FlowCli, ScalingMeasuresOnePathAlone) {
+  for (const std::string mode : {"impostor", "geometry"}) {
+    const fs::path d = fs::temp_directory_path() / ("bb_flow_cli_scaling_" + mode);
+    fs::remove_all(d);
+    Out o = run("flow --variants 0 --humans 2 --frames 1 --warmup 1 --size 160x128 --mode " + mode +
+                " --scaling --scaling-humans 2,4 --scaling-frames 1 --json -o " + d.string());
+    if (o.text.find("EGL") != std::string::npos && o.status != 0) GTEST_SKIP() << "no headless OpenGL: " << o.text;
+    ASSERT_EQ(o.status, 0) << mode << ": " << o.text;
+    const auto j = nlohmann::json::parse(last_json_line(o.text), nullptr, false);
+    ASSERT_FALSE(j.is_discarded()) << o.text;
+    ASSERT_EQ(j["scaling"].size(), 2u);
+    for (const auto& r : j["scaling"]) {
+      EXPECT_EQ(r["geometry_ms"].get<double>() > 0, mode == "geometry") << mode;
+      EXPECT_EQ(r["impostor_ms"].get<double>() > 0, mode == "impostor") << mode;
+    }
+    EXPECT_TRUE(fs::exists(d / "scaling.png")) << mode;
+  }
+}
+
 // --sweep-thresholds runs the sweep at the thresholds given (the demo leaves out two of the paper's
 // range), in that order, each a row of its own.
 TEST(FlowCli, SweepRunsTheThresholdsGiven) {
