@@ -92,11 +92,11 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["relight"] = s.relight ? "on" : "off";
   if (!s.snapshot_lod_from_screen) j["snapshot_lod"] = "window";
   if (!s.perspective_snapshots) j["snapshot_camera"] = "orthographic";
-  j["snapshot_grid"] = s.aligned_snapshots ? "pixels" : "free";
-  j["snapshot_phase"] = s.aligned_phase;
+  j["snapshot_grid"] = r.aligned_snapshots ? "pixels" : "free";
+  j["snapshot_phase"] = r.aligned_phase;
   j["snapshot_scale"] = s.exact_scale ? "exact" : "fill";
   j["snapshot_samples"] = s.snapshot_samples;
-  j["impostor_taps"] = s.snapshot_samples > 1 ? 1 : s.impostor_taps;
+  j["impostor_taps"] = s.snapshot_samples > 1 ? 1 : r.impostor_taps;
   j["quad_fit"] = !s.fit_quads ? "boxes" : r.fit_from_vertices ? "vertices" : "coverage";
   j["atlas"] = r.shared_atlas ? "shared" : "per-model";
   if (s.fit_quads && !r.fit_from_vertices) j["coverage_group"] = r.coverage_group;
@@ -393,16 +393,12 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     return fail("--snapshot-grid: expected auto, pixels or free (got \"" + a.snapshot_grid + "\")");
   if (a.snapshot_scale != "auto" && a.snapshot_scale != "fill" && a.snapshot_scale != "exact")
     return fail("--snapshot-scale: expected auto, fill or exact (got \"" + a.snapshot_scale + "\")");
-  // The auto options take the runtime's tuned choices (bb/runtime/tuning.h, where each is measured):
-  // `tuned` holds what is decided so far, in the order those functions read it.
+  // The auto options take the runtime's tuned choices (bb/runtime/tuning.h, where each is measured).
   runtime::ImpostorConfig tuned;
   tuned.part_cards = a.impostor_parts;
   tuned.texels_per_pixel = a.texels_per_pixel;
   tuned.perspective_snapshots = s.perspective_snapshots;
   tuned.snapshot_samples = a.snapshot_samples;
-  runtime::TuningScene scene;
-  scene.samples = a.msaa;
-  scene.edges = edges_of(s.impostor_edges);
   // auto: exact for whole impostors, fill for part cards.
   s.exact_scale = s.perspective_snapshots && (a.snapshot_scale == "exact" || (a.snapshot_scale == "auto" && runtime::tuned_exact_scale(tuned)));
   if (a.snapshot_samples != 1 && a.snapshot_samples != 4)
@@ -411,17 +407,15 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (a.impostor_taps != "auto" && a.impostor_taps != "1" && a.impostor_taps != "2" && a.impostor_taps != "4")
     return fail("--impostor-taps: expected auto, 1, 2 or 4 (got \"" + a.impostor_taps + "\")");
   // --snapshot-grid auto (runtime::tuned_aligned_snapshots): texels on pixels for whole impostors with
-  // blended edges at one texel per pixel in a multisampled scene, single-sampled snapshots; the free
-  // grid elsewhere. --impostor-taps auto (tuned_impostor_taps): one at one sample and on that grid, two
-  // for other whole impostors at up to one texel per pixel, four for part cards and finer windows.
-  // The phase (tuned_aligned_phase): 1/8 pixel for one tap over single-sampled snapshots on the grid
-  // of a multisampled scene; texels on the pixels otherwise (exact with multisampled snapshots, or
-  // with one tap at one sample).
-  tuned.aligned_snapshots = a.snapshot_grid == "pixels" || (a.snapshot_grid == "auto" && runtime::tuned_aligned_snapshots(tuned, scene));
-  s.aligned_snapshots = tuned.aligned_snapshots;
-  tuned.impostor_taps = a.impostor_taps != "auto" ? std::stoi(a.impostor_taps) : runtime::tuned_impostor_taps(tuned, scene);
-  s.impostor_taps = tuned.impostor_taps;
-  s.aligned_phase = runtime::tuned_aligned_phase(tuned, scene);
+  // blended edges at one texel per pixel in a multisampled scene, single-sampled snapshots, on a
+  // software rasterizer; the free grid elsewhere. --impostor-taps auto (tuned_impostor_taps): one at
+  // one sample and on that grid, two for other whole impostors at up to one texel per pixel, four for
+  // part cards and finer windows. The phase (tuned_aligned_phase): 1/8 pixel for one tap over
+  // single-sampled snapshots on the grid of a multisampled scene; texels on the pixels otherwise
+  // (exact with multisampled snapshots, or with one tap at one sample). The flow test bed decides
+  // the auto ones once it knows the rasterizer.
+  s.aligned_snapshots = a.snapshot_grid == "auto" ? -1 : a.snapshot_grid == "pixels" ? 1 : 0;
+  s.impostor_taps = a.impostor_taps != "auto" ? std::stoi(a.impostor_taps) : 0;
   if (a.quad_fit != "auto" && a.quad_fit != "boxes" && a.quad_fit != "coverage" && a.quad_fit != "vertices")
     return fail("--quad-fit: expected auto, boxes, coverage or vertices (got \"" + a.quad_fit + "\")");
   s.fit_quads = a.quad_fit != "boxes";
@@ -914,7 +908,7 @@ void add_flow_command(CLI::App& app, int* status) {
                   "Whole impostors (part cards have --card-lead): each snapshot is taken from the eye turned ahead about the character's vertical, the way it has been going round it, by this fraction of the view threshold (0-1; the view test still measures from the snapshot's own view, so nothing is shown further off than the threshold), or off")
       ->capture_default_str();
   cmd->add_option("--snapshot-grid", a->snapshot_grid,
-                  "Snapshot texels: pixels (on the screen's pixel grid when taken: exact with --snapshot-samples 4 or at --msaa 1; 1/8 pixel off it with one tap in a multisampled scene), free (section 4.2's camera) or auto (pixels for whole impostors with blended edges at one texel per pixel in a multisampled scene, taking one tap; free elsewhere)")
+                  "Snapshot texels: pixels (on the screen's pixel grid when taken: exact with --snapshot-samples 4 or at --msaa 1; 1/8 pixel off it with one tap in a multisampled scene), free (section 4.2's camera) or auto (pixels for whole impostors with blended edges at one texel per pixel in a multisampled scene on a software rasterizer such as llvmpipe, taking one tap; free elsewhere and on a GPU, which fills two taps at no cost)")
       ->capture_default_str();
   cmd->add_option("--snapshot-scale", a->snapshot_scale,
                   "Snapshot size: fill (the character fills its power-of-two window: 1-2x the texels per pixel asked, section 4.3), exact (the texels per pixel asked, in part of the window: less to draw per refresh) or auto (exact for whole impostors, fill for part cards)")

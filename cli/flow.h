@@ -90,11 +90,13 @@ struct FlowSettings {
   bool parallax_depth_pass = false;         // ImpostorConfig::parallax_depth_pass
   bool lead_cards = true;                   // ImpostorConfig::lead_cards
   float view_lead = 0.0f;                   // ImpostorConfig::view_lead (0: off)
-  bool aligned_snapshots = false;           // ImpostorConfig::aligned_snapshots (texels on pixels)
-  float aligned_phase = 0.0f;               // ImpostorConfig::aligned_phase (pixels)
+  // ImpostorConfig::aligned_snapshots (texels on pixels); -1: auto (runtime::tuned_aligned_snapshots,
+  // decided once the rasterizer is known).
+  int aligned_snapshots = 0;
   bool exact_scale = false;                 // ImpostorConfig::texel_per_pixel (the asked texels per pixel, not the window's)
   int snapshot_samples = 1;                 // ImpostorConfig::snapshot_samples
-  int impostor_taps = 4;                    // ImpostorConfig::impostor_taps
+  int impostor_taps = 4;                    // ImpostorConfig::impostor_taps (0: auto, tuned_impostor_taps)
+  // ImpostorConfig::aligned_phase always follows the grid and the taps (runtime::tuned_aligned_phase).
   bool fit_quads = true;                    // ImpostorConfig::fit_quads_to_coverage
   // ImpostorConfig::fit_quads_from_vertices (--quad-fit vertices); -1: auto (on a software rasterizer
   // but for depth-corrected cards, where it is the faster; the coverage pass on a GPU)
@@ -154,6 +156,9 @@ struct FlowResult {
   bool short_lived_as_geometry = false;     // what FlowSettings::short_lived resolved to
   int coverage_group = 4;                   // what FlowSettings::coverage_group resolved to
   bool fit_from_vertices = false;           // what FlowSettings::fit_from_vertices resolved to
+  bool aligned_snapshots = false;           // what FlowSettings::aligned_snapshots resolved to
+  int impostor_taps = 4;                    // what FlowSettings::impostor_taps resolved to
+  float aligned_phase = 0.0f;               // ImpostorConfig::aligned_phase (pixels) as drawn
   bool shared_atlas = false;                // the models share one atlas (FlowSettings::shared_atlas, if it fits)
   // Mean share of the drawn characters that the impostor path drew as geometry instead of a
   // snapshot drawn once (ImpostorConfig::short_lived_as_geometry).

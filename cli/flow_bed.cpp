@@ -173,11 +173,8 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   config.parallax_depth_pass = s.parallax_depth_pass;
   config.lead_cards = s.lead_cards;
   config.view_lead = s.view_lead;
-  config.aligned_snapshots = s.aligned_snapshots;
-  config.aligned_phase = s.aligned_phase;
   config.texel_per_pixel = s.exact_scale;
   config.snapshot_samples = s.snapshot_samples;
-  config.impostor_taps = s.impostor_taps;
   config.fit_quads_to_coverage = s.fit_quads;
   // auto: the CPU's fit from the vertices on a software rasterizer, where the coverage pass's barrier
   // finishes the frame's drawing so far (flow test bed, llvmpipe: part cards at 8 degrees 3.70-4.06x
@@ -192,6 +189,14 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
   scene.samples = s.msaa;
   scene.software = software;
   scene.edges = edges_of(s.impostor_edges);
+  // The grid, the taps and the phase (flow's --snapshot-grid and --impostor-taps, auto: tuned for
+  // this rasterizer), in the order the tuned_* functions read them.
+  config.aligned_snapshots = s.aligned_snapshots < 0 ? tuned_aligned_snapshots(config, scene) : s.aligned_snapshots > 0;
+  config.impostor_taps = s.impostor_taps > 0 ? s.impostor_taps : tuned_impostor_taps(config, scene);
+  config.aligned_phase = tuned_aligned_phase(config, scene);
+  out.aligned_snapshots = config.aligned_snapshots;
+  out.impostor_taps = config.impostor_taps;
+  out.aligned_phase = config.aligned_phase;
   config.fit_quads_from_vertices =
       s.fit_quads && (s.fit_from_vertices > 0 || (s.fit_from_vertices < 0 && tuned_fit_from_vertices(config, scene)));
   out.fit_from_vertices = config.fit_quads_from_vertices;

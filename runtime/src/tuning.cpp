@@ -9,7 +9,7 @@ bool tuned_whole_blended(const ImpostorConfig& c, const TuningScene& s) {
 }
 
 bool tuned_aligned_snapshots(const ImpostorConfig& c, const TuningScene& s) {
-  return tuned_whole_blended(c, s) && c.snapshot_samples == 1;
+  return tuned_whole_blended(c, s) && c.snapshot_samples == 1 && s.software;
 }
 
 int tuned_impostor_taps(const ImpostorConfig& c, const TuningScene& s) {

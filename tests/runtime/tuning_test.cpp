@@ -31,9 +31,11 @@ TEST(Tuning, TheGridTapsAndPhaseOfFlowsAutoOptions) {
   fine.texels_per_pixel = 2.0f;
   ortho.perspective_snapshots = false;
   exact.snapshot_samples = 4;
-  const TuningScene x4{.samples = 4}, x1{.samples = 1}, coverage{.samples = 4, .edges = ImpostorEdges::kAlphaToCoverage};
+  const TuningScene x4{.samples = 4, .software = true}, x1{.samples = 1, .software = true},
+      coverage{.samples = 4, .software = true, .edges = ImpostorEdges::kAlphaToCoverage}, gpu4{.samples = 4};
   const Case cases[] = {
       {"whole impostors, 4x", whole(), x4, true, 1, 0.125f},
+      {"whole impostors, 4x, on a GPU", whole(), gpu4, false, 2, 0.0f},
       {"part cards", parts, x4, false, 4, 0.0f},
       {"2 texels per pixel", fine, x4, false, 4, 0.0f},
       {"alpha to coverage", whole(), coverage, false, 2, 0.0f},

@@ -38,9 +38,13 @@ struct TuningScene {
 bool tuned_whole_blended(const ImpostorConfig& c, const TuningScene& s);
 
 // ImpostorConfig::aligned_snapshots: snapshots cut out of the screen's image on its pixel grid, for
-// whole blended impostors (tuned_whole_blended) from single-sampled snapshots (snapshot_samples 1).
-// Fortieth session, 4x MSAA: every impostor fresh 27.74 against 26.72 dB over the geometry's pixels
-// (two taps on the free grid), the main run 9.8-10.0x against 9.3-9.5x for 0.11 dB less.
+// whole blended impostors (tuned_whole_blended) from single-sampled snapshots (snapshot_samples 1)
+// on a software rasterizer. There, fortieth session, 4x MSAA: every impostor fresh 27.74 against
+// 26.72 dB over the geometry's pixels (two taps on the free grid), the main run 9.8-10.0x against
+// 9.3-9.5x for 0.11 dB less; what it buys is one tap's fill. A GPU fills two taps at no cost and
+// keeps the free grid: on the H200 (fifty-second session) the main run 0.64-0.67x of geometry's speed
+// on the grid against 0.70-0.71x on the free grid, at 12.6 against 12.8 dB, and a GPU draws a
+// fresh (short-lived) character as geometry anyway (tuned_short_lived_as_geometry).
 bool tuned_aligned_snapshots(const ImpostorConfig& c, const TuningScene& s);
 
 // ImpostorConfig::impostor_taps, given c.aligned_snapshots: 1 in a single-sampled scene (no coverage
