@@ -524,6 +524,37 @@ set_s52() {
   flow e52_scaling_2 $C4 --frames 2 --gpu-stages --scaling --scaling-humans 20,100,1000,2000,5000,10000 --scaling-frames 8
   flow e52_sweep_posture_h1000 $C4 --frames 40 --humans 1000 --sweep posture
 }
+# The same session: the thirty-ninth session's binary (.gpu/bin/bench_flow_prev, built from 7059f01)
+# against the present one, and the present one on the free grid (the thirty-ninth's) against auto
+# (the pixel grid), alternated: where the impostor frame's time went since then.
+flowp() { local B=.gpu/bin/bench_flow_prev; flow "$@"; }
+set_s52b() {
+  for i in 1 2; do
+    flowp p52_prev_h1000_v8_$i $C4 --frames 40 --humans 1000 --posture off --view 8 --gpu-stages
+    flow p52_new_h1000_v8_$i $C4 --frames 40 --humans 1000 --posture off --view 8 --gpu-stages
+    flow p52_free_h1000_v8_$i $C4 --frames 40 --humans 1000 --posture off --view 8 --gpu-stages --snapshot-grid free
+    flowp p52_prev_10k_$i $C4 --frames 2 --gpu-stages --scaling --scaling-humans 10000 --scaling-frames 8
+    flow p52_new_10k_$i $C4 --frames 2 --gpu-stages --scaling --scaling-humans 10000 --scaling-frames 8
+    flow p52_free_10k_$i $C4 --frames 2 --gpu-stages --scaling --scaling-humans 10000 --scaling-frames 8 --snapshot-grid free
+    flowp p52_prev_main_$i $C4 --frames 60 --gpu-stages
+    flow p52_new_main_$i $C4 --frames 60 --gpu-stages
+    flow p52_free_main_$i $C4 --frames 60 --gpu-stages --snapshot-grid free
+  done
+}
+# The same session, after --snapshot-grid auto went to the free grid on a GPU: auto against the pixel
+# grid, alternated three times; the 1,000-human view sweep in both orders with the GPU's stages timed
+# (does geometry's time follow the threshold or the time into the run?); then s52's runs again.
+set_s52c() {
+  for i in 1 2 3; do
+    flow c52_auto_main_$i $C4 --frames 60
+    flow c52_pixels_main_$i $C4 --frames 60 --snapshot-grid pixels
+    flow c52_auto_h1000_v8_$i $C4 --frames 40 --humans 1000 --posture off --view 8
+    flow c52_pixels_h1000_v8_$i $C4 --frames 40 --humans 1000 --posture off --view 8 --snapshot-grid pixels
+  done
+  flow c52_sweep_up_h1000 $C4 --frames 40 --humans 1000 --sweep view --sweep-thresholds 0,5,8,17,30 --gpu-stages
+  flow c52_sweep_down_h1000 $C4 --frames 40 --humans 1000 --sweep view --sweep-thresholds 30,17,8,5,0 --gpu-stages
+  set_s52
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"
