@@ -555,6 +555,23 @@ set_s52c() {
   flow c52_sweep_down_h1000 $C4 --frames 40 --humans 1000 --sweep view --sweep-thresholds 30,17,8,5,0 --gpu-stages
   set_s52
 }
+# The same session: the planner's threads on a 16-thread host. Characters a planning thread
+# (FramePlanner::kCharactersPerThread, 512, through a temporary switch BB_TMP_PER_THREAD, since
+# removed) against 128 and 32, alternated three times, with small crowds chunked where the models'
+# joint work is enough (plan_many).
+set_s52d() {
+  for i in 1 2 3; do
+    for per in 512 128 32; do
+      BB_TMP_PER_THREAD=$per flow d52_${per}_h1000_v8_$i $C4 --frames 40 --humans 1000 --posture off --view 8
+      BB_TMP_PER_THREAD=$per flow d52_${per}_h2000_$i $C4 --frames 30 --humans 2000
+    done
+  done
+  for i in 1 2; do
+    for per in 512 128; do
+      BB_TMP_PER_THREAD=$per flow d52_${per}_10k_$i $C4 --frames 2 --scaling --scaling-humans 10000 --scaling-frames 8
+    done
+  done
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"

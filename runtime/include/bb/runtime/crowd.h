@@ -472,8 +472,12 @@ class FramePlanner {
   // character refreshed every frame, is planned on threads at 250 characters a model too.
   static constexpr std::size_t kParallelCharacters = 512;
   static constexpr std::size_t kRefreshWork = 8;
-  // ... on one thread per this much work at most (up to planner_threads).
-  static constexpr std::size_t kCharactersPerThread = 512;
+  // ... on one thread per this much work at most (up to planner_threads). On the H200's 16-thread
+  // host (fifty-second session, flow test bed, our four bodies, three alternated runs each) 32
+  // against 512 planned 1,000 humans in 0.18-0.19 ms against 0.28-0.31 (2.29-2.55x geometry's
+  // speed at 8 degrees against 1.91-2.09x; 128: 0.21-0.26 ms), 2,000 in 0.24-0.26 ms against
+  // 0.34-0.41; 10,000 take every thread either way. A 2-core machine is at two threads from 64.
+  static constexpr std::size_t kCharactersPerThread = 32;
   // ... in chunks of at least this many characters (four chunks a thread of the pool).
   static constexpr std::size_t kCharactersPerChunk = 32;
   // ... and stale impostors reached by the refresh budget on one thread per this many (a refresh
@@ -492,10 +496,13 @@ class FramePlanner {
   const FramePlan& plan(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode);
 
   // One frame of several planners (one per model, each with its crowd: crowds[k] is of
-  // planners[k]'s model), every plan the same as plan() would make, planned together: the large
+  // planners[k]'s model), every plan the same as plan() would make, planned together: the
   // crowds' chunks in one call on planners[0]'s threads instead of one call per model (the
-  // wake-ups and the waits for the last thread are paid once). The plans are then each
-  // planner's plan_of_last_frame(). Planners must be distinct.
+  // wake-ups and the waits for the last thread are paid once). A crowd too small for threads on
+  // its own is chunked too where the crowds' joint work is enough; its plan then lists the
+  // characters whose atlas windows changed after the others, as a chunked crowd's does (the same
+  // entries as plan()'s, whatever the threads). The plans are then each planner's
+  // plan_of_last_frame(). Planners must be distinct.
   static void plan_many(std::span<FramePlanner* const> planners, std::span<const Crowd* const> crowds,
                         const SceneCamera& camera, float time, RenderMode mode);
   // What the last plan() or plan_many() returned or made; valid until the next.
@@ -692,6 +699,8 @@ class FramePlanner {
   // crowd is planned serially by end_frame), plan_chunk for each (any thread, any order),
   // end_frame (joins the chunks, serves the budget, returns the plan).
   std::size_t begin_frame(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode);
+  // Splits begin_frame's crowd into chunks (if not already, and not empty); returns their number.
+  std::size_t chunk_frame();
   // Moves the cache slots (and part cards) with their characters' ids where the crowd has changed
   // other than at its end, releasing the windows of characters no longer in it (begin_frame).
   void follow_ids(const Crowd& crowd);
