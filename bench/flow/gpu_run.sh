@@ -572,6 +572,16 @@ set_s52d() {
     done
   done
 }
+# The same session's code at its end (the free grid on a GPU, a planning thread per 32 characters):
+# 1,000 and 2,000 humans three times, then s52's runs.
+set_s52e() {
+  for i in 1 2 3; do
+    flow f52_h1000_v8_$i $C4 --frames 40 --humans 1000 --posture off --view 8
+    flow f52_h1000_$i $C4 --frames 40 --humans 1000
+    flow f52_h2000_$i $C4 --frames 30 --humans 2000
+  done
+  set_s52
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"
