@@ -22,6 +22,7 @@
 #include "commands.h"
 #include "io.h"
 #include "model_notes.h"
+#include "timing_notes.h"
 
 namespace bb::cli {
 
@@ -657,6 +658,16 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
                      r->refresh_fraction, r->psnr_db);
     }
     report["sweep"] = sweep;
+    // The geometry frames' spread across the sweep (the same work at every threshold): where it is
+    // beyond the noise, the device's speed changed during the run (timing_notes.h).
+    std::vector<double> geometry_times;
+    for (const auto& e : sweep) geometry_times.push_back(e["geometry_ms"].get<double>());
+    const double spread = geometry_spread(geometry_times);
+    report["sweep_geometry_spread"] = spread;
+    if (auto note = drift_note(spread)) {
+      if (!a.json) std::fprintf(stderr, "flow: note: --sweep %s: %s\n", a.sweep.c_str(), note->c_str());
+      report["sweep_note"] = *note;
+    }
     std::string base = (fs::path(a.out) / ("sweep_" + a.sweep)).string();
     Chart c;
     c.title = posture ? "Posture threshold (view test off): time normalized to geometry"

@@ -1165,6 +1165,14 @@ TEST(FlowCli, SweepRunsTheThresholdsGiven) {
   EXPECT_EQ(j["sweep"][1]["threshold"].get<double>(), 0.0);
   EXPECT_EQ(j["sweep"][2]["threshold"].get<double>(), 2.5);
   EXPECT_EQ(j["sweep"][1]["refresh_fraction"].get<double>(), 1.0);  // 0 degrees: every frame
+  // The geometry frames' spread across the sweep: its largest time over its smallest.
+  double lo = 1e30, hi = 0;
+  for (const auto& e : j["sweep"]) {
+    lo = std::min(lo, e["geometry_ms"].get<double>());
+    hi = std::max(hi, e["geometry_ms"].get<double>());
+  }
+  EXPECT_DOUBLE_EQ(j["sweep_geometry_spread"].get<double>(), hi / lo);
+  EXPECT_EQ(j.contains("sweep_note"), hi / lo >= 1.6);
 }
 
 TEST(FlowCli, BadFlagsAreErrors) {
