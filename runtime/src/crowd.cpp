@@ -1078,7 +1078,7 @@ void FramePlanner::plan_many(std::span<FramePlanner* const> planners, std::span<
   // Every planner's chunks in one call on the first planner's pool: one wake-up for all. Crowds
   // too small for threads alone are chunked too where the joint work is enough for them (the
   // flow test bed's four bodies at 1,000 humans: 250 characters a model, each planned on one
-  // thread before; the plans are the same either way).
+  // thread before). Such a plan holds what plan() makes, in a chunked crowd's order.
   std::size_t total = 0, work = 0;
   std::array<std::size_t, 65> first{};  // planners' first chunk in the joint numbering
   const std::size_t joint = std::min<std::size_t>(planners.size(), 64);
