@@ -395,11 +395,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (a.snapshot_scale != "auto" && a.snapshot_scale != "fill" && a.snapshot_scale != "exact")
     return fail("--snapshot-scale: expected auto, fill or exact (got \"" + a.snapshot_scale + "\")");
   // The auto options take the runtime's tuned choices (bb/runtime/tuning.h, where each is measured).
-  runtime::ImpostorConfig tuned;
+  runtime::ImpostorConfig tuned;  // what tuned_exact_scale reads
   tuned.part_cards = a.impostor_parts;
-  tuned.texels_per_pixel = a.texels_per_pixel;
   tuned.perspective_snapshots = s.perspective_snapshots;
-  tuned.snapshot_samples = a.snapshot_samples;
   // auto: exact for whole impostors, fill for part cards.
   s.exact_scale = s.perspective_snapshots && (a.snapshot_scale == "exact" || (a.snapshot_scale == "auto" && runtime::tuned_exact_scale(tuned)));
   if (a.snapshot_samples != 1 && a.snapshot_samples != 4)
@@ -634,6 +632,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     Series psnr_ref{"the same error over the geometry's pixels (dB)", {}, {}, 0x9467bd};
     FlowSettings ss = s;
     ss.keep_frames.clear();
+    std::vector<double> geometry_times;  // each threshold's, for the spread below
     for (float v : values) {
       if (posture) { ss.posture_test = true; ss.posture_threshold = v; ss.view_test = false; }
       else { ss.view_test = true; ss.view_deg = v; ss.posture_test = false; }
@@ -642,6 +641,7 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
       ordered_json j = to_json(*r, ss);
       j["threshold"] = std::round(static_cast<double>(v) * 1000.0) / 1000.0;
       sweep.push_back(j);
+      geometry_times.push_back(r->geometry_ms);
       csv << v << "," << r->geometry_ms << "," << r->impostor_ms << "," << r->ratio << ","
           << (r->ratio > 0 ? 1 / r->ratio : 0) << "," << r->refresh_fraction << "," << r->psnr_db << "," << r->ssim
           << "," << r->psnr_ref_db << "\n";
@@ -660,8 +660,6 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
     report["sweep"] = sweep;
     // The geometry frames' spread across the sweep (the same work at every threshold): where it is
     // beyond the noise, the device's speed changed during the run (timing_notes.h).
-    std::vector<double> geometry_times;
-    for (const auto& e : sweep) geometry_times.push_back(e["geometry_ms"].get<double>());
     const double spread = geometry_spread(geometry_times);
     report["sweep_geometry_spread"] = spread;
     if (auto note = drift_note(spread)) {

@@ -103,9 +103,9 @@ std::vector<unsigned char> render_chart(const Chart& c, int width, int height) {
   const int left = 90, right = 20, top = 70, bottom = 70;
   // A point a chart cannot place (not finite, or not positive on a logarithmic axis) is left out,
   // and the series' line breaks there.
-  auto placeable = [&](double x, double y) {
-    return std::isfinite(x) && std::isfinite(y) && (!c.log_x || x > 0) && (!c.log_y || y > 0);
-  };
+  auto x_ok = [&](double x) { return std::isfinite(x) && (!c.log_x || x > 0); };
+  auto y_ok = [&](double y) { return std::isfinite(y) && (!c.log_y || y > 0); };
+  auto placeable = [&](double x, double y) { return x_ok(x) && y_ok(y); };
   double x_lo = 1e300, x_hi = -1e300, y_lo = 1e300, y_hi = -1e300;
   for (const auto& s : c.series)
     for (size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
@@ -114,9 +114,9 @@ std::vector<unsigned char> render_chart(const Chart& c, int width, int height) {
       y_lo = std::min(y_lo, s.y[i]); y_hi = std::max(y_hi, s.y[i]);
     }
   for (double h : c.hlines)
-    if (placeable(c.log_x ? 1 : 0, h)) { y_lo = std::min(y_lo, h); y_hi = std::max(y_hi, h); }
+    if (y_ok(h)) { y_lo = std::min(y_lo, h); y_hi = std::max(y_hi, h); }
   for (double v : c.vlines)
-    if (placeable(v, c.log_y ? 1 : 0)) { x_lo = std::min(x_lo, v); x_hi = std::max(x_hi, v); }
+    if (x_ok(v)) { x_lo = std::min(x_lo, v); x_hi = std::max(x_hi, v); }
   if (x_lo > x_hi) { x_lo = c.log_x ? 1 : 0; x_hi = c.log_x ? 10 : 1; }
   if (y_lo > y_hi) { y_lo = c.log_y ? 1 : 0; y_hi = c.log_y ? 10 : 1; }
   if (c.y_min != 0 || c.y_max != 0) { y_lo = c.y_min; y_hi = c.y_max; }
@@ -158,9 +158,9 @@ std::vector<unsigned char> render_chart(const Chart& c, int width, int height) {
   if (corner)
     cv.text(sx(c.vlines[0]) + 8, std::max(static_cast<float>(top) + 4, sy(c.hlines[0]) - 20.0f), c.corner_label, 0x2a7a2a);
   for (double h : c.hlines)
-    if (placeable(c.log_x ? 1 : 0, h)) cv.line(static_cast<float>(left), sy(h), left + pw, sy(h), 0x888888, 1.5f);
+    if (y_ok(h)) cv.line(static_cast<float>(left), sy(h), left + pw, sy(h), 0x888888, 1.5f);
   for (double v : c.vlines)
-    if (placeable(v, c.log_y ? 1 : 0)) cv.line(sx(v), static_cast<float>(top), sx(v), top + ph, 0x888888, 1.5f);
+    if (x_ok(v)) cv.line(sx(v), static_cast<float>(top), sx(v), top + ph, 0x888888, 1.5f);
   cv.line(static_cast<float>(left), static_cast<float>(top), static_cast<float>(left), top + ph, 0x222222, 1.5f);
   cv.line(static_cast<float>(left), top + ph, left + pw, top + ph, 0x222222, 1.5f);
   cv.text(left + (pw - Canvas::text_width(c.x_label)) / 2, static_cast<float>(height - 30), c.x_label, 0x222222);
