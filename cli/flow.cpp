@@ -101,6 +101,7 @@ ordered_json to_json(const FlowResult& r, const FlowSettings& s) {
   j["quad_fit"] = !s.fit_quads ? "boxes" : r.fit_from_vertices ? "vertices" : "coverage";
   j["atlas"] = r.shared_atlas ? "shared" : "per-model";
   if (s.fit_quads && !r.fit_from_vertices) j["coverage_group"] = r.coverage_group;
+  j["quad_fetch"] = r.pulled_quads ? "pulled" : "instanced";
   j["short_lived"] = r.short_lived_as_geometry ? "geometry" : "snapshot";
   if (r.short_lived_as_geometry) j["short_lived_geometry"] = r.short_lived_geometry;
   j["flush_every"] = s.flush_every_indices < 0 ? ordered_json("auto") : s.flush_every_indices == 0 ? ordered_json("off") : ordered_json(s.flush_every_indices);
@@ -425,6 +426,9 @@ int run_flow_command(const FlowArgs& a, nlohmann::ordered_json* out_report) {
   if (a.coverage_group != "auto" && a.coverage_group != "4" && a.coverage_group != "8" && a.coverage_group != "16")
     return fail("--coverage-group: expected auto, 4, 8 or 16 (got \"" + a.coverage_group + "\")");
   s.coverage_group = a.coverage_group == "auto" ? 0 : std::stoi(a.coverage_group);
+  if (a.quad_fetch != "auto" && a.quad_fetch != "instanced" && a.quad_fetch != "pulled")
+    return fail("--quad-fetch: expected auto, instanced or pulled (got \"" + a.quad_fetch + "\")");
+  s.quad_fetch = a.quad_fetch == "auto" ? 0 : a.quad_fetch == "instanced" ? 1 : 2;
   s.time_stages = a.gpu_stages;
   if (a.flush_every == "auto") s.flush_every_indices = -1;
   else if (a.flush_every == "off") s.flush_every_indices = 0;
@@ -936,6 +940,9 @@ void add_flow_command(CLI::App& app, int* status) {
       ->capture_default_str();
   cmd->add_option("--coverage-group", a->coverage_group,
                   "With --quad-fit coverage: invocations per side of the coverage pass's work groups, one group per new snapshot: 4, 8, 16 or auto (4 on a software rasterizer such as llvmpipe, which runs a group's invocations as one thread's SIMD lanes; 16 on a GPU, where a group waits for its invocations' walk over the window); the same rectangles whatever the size")
+      ->capture_default_str();
+  cmd->add_option("--quad-fetch", a->quad_fetch,
+                  "How the impostor quads reach the vertex shader: instanced (an instance of four vertices a quad), pulled (one indexed draw, each vertex fetching its quad from a buffer texture: the same pictures) or auto (pulled on a software rasterizer such as llvmpipe, which runs its vertex pipeline once per instance: 10,000 humans' quads submitted in about half the time; instanced on a GPU)")
       ->capture_default_str();
   cmd->add_option("--flush-every", a->flush_every,
                   "Flush the drawing to the GPU after every N indices drawn into a single-sampled target, geometry and snapshots alike: auto (every 10000 on a software rasterizer such as llvmpipe, which then rasterizes the first characters while it shades the next ones' vertices: in single-sampled geometry passes of 20000 and more and snapshot passes of 60000 and more; never on a GPU), off, or N (any pass)")

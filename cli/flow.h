@@ -104,6 +104,7 @@ struct FlowSettings {
   bool shared_atlas = true;                 // one atlas for every model (shared_atlas_config) where the GL
                                             // makes one texture that big, else one each
   int coverage_group = 0;                   // ImpostorConfig::coverage_group (0: by the rasterizer)
+  int quad_fetch = 0;                       // ImpostorConfig::quad_fetch (0: by the rasterizer, 1 instanced, 2 pulled)
   bool time_stages = false;                 // GPU timestamps between the renderer's stages (gpu_ms_stages)
   int flush_every_indices = -1;             // DrawOptions::flush_every_indices (-1: auto, 0: never)
   // ImpostorConfig::short_lived_as_geometry: -1 auto (on where the impostor target has the
@@ -155,6 +156,7 @@ struct FlowResult {
   double snapshot_frames = 0;
   bool short_lived_as_geometry = false;     // what FlowSettings::short_lived resolved to
   int coverage_group = 4;                   // what FlowSettings::coverage_group resolved to
+  bool pulled_quads = false;                // what FlowSettings::quad_fetch resolved to
   bool fit_from_vertices = false;           // what FlowSettings::fit_from_vertices resolved to
   bool aligned_snapshots = false;           // what FlowSettings::aligned_snapshots resolved to
   int impostor_taps = 4;                    // what FlowSettings::impostor_taps resolved to
@@ -257,6 +259,7 @@ struct FlowArgs {
   std::string quad_fit = "auto";
   std::string atlas = "shared";
   std::string coverage_group = "auto";
+  std::string quad_fetch = "auto";
   bool gpu_stages = false;
   std::string flush_every = "auto";
   std::string short_lived = "auto";  // auto, geometry or snapshot (FlowSettings::short_lived)

@@ -201,6 +201,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
       s.fit_quads && (s.fit_from_vertices > 0 || (s.fit_from_vertices < 0 && tuned_fit_from_vertices(config, scene)));
   out.fit_from_vertices = config.fit_quads_from_vertices;
   config.coverage_group = s.coverage_group;
+  config.quad_fetch = s.quad_fetch;
   config.planner_threads = s.planner_threads;
   DrawOptions draw_options;
   draw_options.time_stages = s.time_stages;
@@ -295,6 +296,7 @@ Result<FlowResult> run_flow(std::span<const runtime::Model* const> models, const
     renderer_ptrs.push_back(renderers.back().get());
   }
   out.coverage_group = renderers.front()->coverage_group();
+  out.pulled_quads = renderers.front()->pulls_quads();
   for (int m = 0; m < nm; ++m) {
     planners.push_back(std::make_unique<FramePlanner>(*models[m], configs[m]));
     crowds.emplace_back(*models[m]);

@@ -32,7 +32,7 @@ if [ "$what" != render ]; then
     "--lods 0" "--impostor-parts" "--impostor-parts --limb-cards turn" "--relight on" "--impostor-parts --card-depth on"
     "--impostor-parts --card-depth pass" "--view-lead 0.5" "--snapshot-grid pixels" "--snapshot-grid free"
     "--snapshot-scale fill" "--snapshot-samples 4" "--impostor-taps 1" "--impostor-taps 4" "--quad-fit boxes"
-    "--quad-fit coverage" "--quad-fit vertices" "--coverage-group 16" "--flush-every 0" "--flush-every 100"
+    "--quad-fit coverage" "--quad-fit vertices" "--coverage-group 16" "--quad-fetch instanced" "--quad-fetch pulled" "--flush-every 0" "--flush-every 100"
     "--short-lived geometry" "--short-lived snapshot" "--planner-threads 1" "--gpu-stages" "--refresh-budget 1"
     "--refresh-ahead 0.5" "--sweep view --sweep-thresholds 0,8" "--sweep posture --sweep-thresholds 0,0.4"
     "--scaling --scaling-humans 2,5 --scaling-frames 1" "--targets" "--json")

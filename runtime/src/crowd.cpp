@@ -493,6 +493,8 @@ Status validate_impostor_config(const ImpostorConfig& c) {
     return bad("texels_per_pixel", std::to_string(c.texels_per_pixel) + ": texels per pixel must be finite and > 0");
   if (!(c.aligned_phase >= 0.0f && c.aligned_phase < 1.0f))
     return bad("aligned_phase", std::to_string(c.aligned_phase) + " is not in [0, 1) pixels");
+  if (c.quad_fetch < 0 || c.quad_fetch > 2)
+    return bad("quad_fetch", std::to_string(c.quad_fetch) + " is not 0 (auto), 1 (instanced) or 2 (pulled)");
   return Ok{};
 }
 

@@ -264,6 +264,22 @@ void main() {
 )";
 
 const char* kBillboardVs = R"(#version 450 core
+#ifdef BB_PULL
+layout(binding = 7) uniform samplerBuffer u_quads;  // 7 RGBA32F texels per quad (BillboardGpu)
+vec4 i_ta_half, i_uv, i_layer, i_rect, i_axis_x, i_axis_y, i_snap;
+int corner;
+void pull() {
+  int b = (gl_VertexID >> 2) * 7;
+  i_ta_half = texelFetch(u_quads, b);
+  i_uv = texelFetch(u_quads, b + 1);
+  i_layer = texelFetch(u_quads, b + 2);
+  i_rect = texelFetch(u_quads, b + 3);
+  i_axis_x = texelFetch(u_quads, b + 4);
+  i_axis_y = texelFetch(u_quads, b + 5);
+  i_snap = texelFetch(u_quads, b + 6);
+  corner = gl_VertexID & 3;
+}
+#else
 layout(location = 0) in vec4 i_ta_half;
 layout(location = 1) in vec4 i_uv;
 layout(location = 2) in vec4 i_layer;
@@ -271,6 +287,9 @@ layout(location = 3) in vec4 i_rect;
 layout(location = 4) in vec4 i_axis_x;  // part cards (w = 1): half axes, world
 layout(location = 5) in vec4 i_axis_y;
 layout(location = 6) in vec4 i_snap;  // depth-corrected part cards (z > 0): snapshot eye, radius
+int corner;
+void pull() { corner = gl_VertexID; }
+#endif
 uniform mat4 u_viewproj;
 uniform vec3 u_eye;
 uniform vec3 u_up;
@@ -299,6 +318,7 @@ flat out vec2 v_eye_clip;  // the eye's clip z and w: the depth of a point on a 
 flat out mat3 v_frame;  // the quad's Ho, Uo, Vo now (world, unit): relit snapshots' normals to world
 #endif
 void main() {
+  pull();
   vec4 r = i_rect;
   if (i_layer.z > 0.5) {
     vec4 f = covered[int(i_layer.y)];
@@ -328,7 +348,7 @@ void main() {
     }
   }
 #endif
-  vec2 c = mix(r.xy, r.zw, vec2(gl_VertexID & 1, gl_VertexID >> 1));
+  vec2 c = mix(r.xy, r.zw, vec2(corner & 1, corner >> 1));
 #ifdef BB_CARD_DEPTH
   v_c = c;
 #endif
@@ -882,6 +902,13 @@ struct Renderer::Impl {
   bool layered = false;  // one snapshot pass for all pages (depth is then a texture array too)
   std::vector<std::array<GLuint, 2>> lod_runs;  // per LOD: (count, first) in snapshot_scratch
   GLuint vao_billboard = 0;
+  // Pulled quads (ImpostorConfig::quad_fetch): one indexed draw, the vertex shader fetching quad
+  // gl_VertexID / 4 from a buffer texture over `billboards`, instead of an instance per quad.
+  bool pull_quads = false;
+  std::size_t max_pulled_quads = 0;     // GL_MAX_TEXTURE_BUFFER_SIZE / 7
+  GLuint quad_texture = 0;              // GL_TEXTURE_BUFFER, RGBA32F, over `billboards`
+  GLuint quad_indices = 0;              // 0 1 2 2 1 3, then the same + 4 per quad
+  std::size_t quad_index_capacity = 0;  // quads the index buffer holds
   StreamBuffer instances, snapshots, billboards;
   std::vector<InstanceGpu> instance_scratch;
   std::vector<SnapshotGpu> snapshot_scratch;
@@ -993,6 +1020,11 @@ struct Renderer::Impl {
     if (relight) glBindTextureUnit(5, shared_atlas->atlas_normal);
     glBindVertexArray(vao_billboard);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, shared_atlas->coverage);
+    if (pull_quads) {
+      if (quad_texture == 0) glCreateTextures(GL_TEXTURE_BUFFER, 1, &quad_texture);
+      glTextureBuffer(quad_texture, GL_RGBA32F, billboards.id);
+      glBindTextureUnit(7, quad_texture);
+    }
   }
 
   // The pass's blending and sampling state, the same whichever renderer draws; returns whether
@@ -1039,6 +1071,34 @@ struct Renderer::Impl {
     glBindSampler(1, 0);
   }
 
+  // One draw of uploaded quads [first, first + count) as this renderer fetches them: an instanced
+  // strip of 4 vertices each, or 6 indices each with the quad pulled by the vertex shader (the index
+  // buffer goes to the bound vertex array: draw_many draws a renderer's quads with another's program).
+  void draw_quads(GLuint first, GLsizei count) {
+    if (!pull_quads) {
+      glDrawArraysInstancedBaseInstance(GL_TRIANGLE_STRIP, 0, 4, count, first);
+      return;
+    }
+    const std::size_t need = static_cast<std::size_t>(first) + static_cast<std::size_t>(count);
+    assert(need <= max_pulled_quads && "more quads than a buffer texture holds");
+    if (need > quad_index_capacity) {
+      quad_index_capacity = std::max(need, 2 * quad_index_capacity);
+      std::vector<GLuint> idx(6 * quad_index_capacity);
+      for (std::size_t q = 0; q < quad_index_capacity; ++q) {
+        const GLuint v = static_cast<GLuint>(4 * q);
+        const GLuint t[6] = {v, v + 1, v + 2, v + 2, v + 1, v + 3};
+        std::copy(t, t + 6, idx.begin() + static_cast<std::ptrdiff_t>(6 * q));
+      }
+      if (quad_indices == 0) glCreateBuffers(1, &quad_indices);
+      glNamedBufferData(quad_indices, static_cast<GLsizeiptr>(idx.size() * 4), idx.data(), GL_STATIC_DRAW);
+    }
+    GLint vao = 0;
+    glGetIntegerv(GL_VERTEX_ARRAY_BINDING, &vao);
+    glVertexArrayElementBuffer(static_cast<GLuint>(vao), quad_indices);
+    glDrawElements(GL_TRIANGLES, 6 * count, GL_UNSIGNED_INT,
+                   reinterpret_cast<const void*>(static_cast<std::uintptr_t>(first) * 6 * 4));
+  }
+
   // Draws uploaded quads [first, first + count) (bound by bind_impostors).
   void draw_impostor_range(const ImpostorPass& p, GLuint first, GLsizei count) {
     if (count <= 0) return;
@@ -1053,13 +1113,13 @@ struct Renderer::Impl {
       // are not behind it.
       glProgramUniform1i(bp.prog, bp.depth_pass, 1);
       glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
-      glDrawArraysInstancedBaseInstance(GL_TRIANGLE_STRIP, 0, 4, count, first);
+      draw_quads(first, count);
       glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
       glProgramUniform1i(bp.prog, bp.depth_pass, 0);
       glDepthFunc(GL_LEQUAL);
     }
     if (p.mode == 1 && p.cards) glDepthMask(GL_FALSE);
-    glDrawArraysInstancedBaseInstance(GL_TRIANGLE_STRIP, 0, 4, count, first);
+    draw_quads(first, count);
     glDepthFunc(GL_LESS);
     glDepthMask(GL_TRUE);
   }
@@ -1468,6 +1528,20 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   if (d.relight)  // impostors lit as drawn
     for (std::string* src : {&bvs, &bfs}) *src = with_define(*src, "BB_RELIGHT");
   bfs = with_define(bfs, "BB_TAPS", d.snapshot_samples > 1 || config.impostor_taps <= 1 ? 1 : config.impostor_taps == 2 ? 2 : 4);
+  {
+    // Pulled quads read 7 texels each from one buffer texture: GL 4.5 promises 65,536 texels, Mesa
+    // and the GPU drivers give 2^27 (19 million quads). Auto pulls only where 4 million fit.
+    GLint max_texels = 0;
+    glGetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &max_texels);
+    d.max_pulled_quads = static_cast<std::size_t>(std::max(max_texels, 0)) / 7;
+    constexpr std::size_t kPulledQuadsWanted = std::size_t{1} << 22;
+    if (config.quad_fetch == 2 && d.max_pulled_quads < kPulledQuadsWanted)
+      return Error{"", "ImpostorConfig::quad_fetch",
+                   "pulled quads need a buffer texture of " + std::to_string(7 * kPulledQuadsWanted) + " texels; this GL gives " +
+                       std::to_string(max_texels)};
+    d.pull_quads = config.quad_fetch == 2 || (config.quad_fetch == 0 && d.software && d.max_pulled_quads >= kPulledQuadsWanted);
+  }
+  if (d.pull_quads) bvs = with_define(bvs, "BB_PULL");
   d.billboard_source = bvs + bfs;
   for (int mode = 0; mode < static_cast<int>(d.bb.size()); ++mode) {
     auto pb = program(bvs, mode == 3 ? with_define(bfs, "BB_PER_SAMPLE") : with_define(bfs, "BB_EDGES", mode),
@@ -1728,6 +1802,8 @@ Renderer::~Renderer() {
     glDeleteBuffers(1, &l.ibo);
   }
   glDeleteVertexArrays(1, &d.vao_billboard);
+  glDeleteTextures(1, &d.quad_texture);
+  glDeleteBuffers(1, &d.quad_indices);
   if (!d.textures.empty()) glDeleteTextures(static_cast<GLsizei>(d.textures.size()), d.textures.data());
   if (!d.samplers.empty()) glDeleteSamplers(static_cast<GLsizei>(d.samplers.size()), d.samplers.data());
   glDeleteTextures(1, &d.white);
@@ -2057,6 +2133,7 @@ std::vector<std::uint8_t> Renderer::read_atlas_page(int page) const {
 }
 
 int Renderer::coverage_group() const { return impl_->coverage_group; }
+bool Renderer::pulls_quads() const { return impl_->pull_quads; }
 
 glm::vec4 Renderer::coverage_rect(int slot) const {
   glm::vec4 r(0.0f);

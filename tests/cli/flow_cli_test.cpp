@@ -1182,6 +1182,7 @@ TEST(FlowCli, BadFlagsAreErrors) {
                            "flow --refresh-budget -1", "flow --refresh-ahead 1", "flow --refresh-ahead 0",
                            "flow --refresh-ahead soon", "flow --refresh-ahead 0.5x", "flow --ahead-count 0", "flow --limb-cards round", "flow --snapshot-grid texels",
                            "flow --snapshot-samples 3", "flow --impostor-taps 3", "flow --quad-fit hull", "flow --coverage-group 32", "flow --coverage-group 0",
+                           "flow --quad-fetch strip",
                            "flow --planner-threads -1",
                            "flow --card-depth maybe", "flow --card-lead maybe", "flow --view-lead 0", "flow --view-lead 1.5", "flow --view-lead ahead",
                            "flow --screen-weighting 0",

@@ -1306,6 +1306,11 @@ TEST(ImpostorConfigCheck, BrokenContractsNameTheSetting) {
   c = ImpostorConfig{};
   c.aligned_phase = 1.0f;
   EXPECT_EQ(where(c).rfind("ImpostorConfig::aligned_phase", 0), 0u) << where(c);
+  c = ImpostorConfig{};
+  c.quad_fetch = 2;
+  EXPECT_EQ(where(c), "ok");
+  c.quad_fetch = 3;
+  EXPECT_EQ(where(c).rfind("ImpostorConfig::quad_fetch: 3", 0), 0u) << where(c);
 }
 
 // A page smaller than the largest window (a broken contract, asserted where assertions are on):

@@ -1666,6 +1666,100 @@ TEST(CrowdRender, PartCardsCloseTheirCuts) {
   EXPECT_LT(holes, covered / 25);
 }
 
+// Impostor quads pulled by the vertex shader from a buffer texture (ImpostorConfig::quad_fetch 2,
+// the default on a software rasterizer) draw the pixels that instanced quads (1) draw, byte for byte:
+// whole impostors, depth-corrected part cards (with their depth pass: two draws of one range), and
+// two models' quads through draw_many, both with an atlas each (a draw per model and layer, from an
+// offset into each model's quads) and with one shared atlas (one draw).
+TEST(CrowdRender, PulledQuadsDrawWhatInstancedQuadsDraw) {
+  REQUIRE_GL();
+  const Model m = tube_model(60.0f);
+  Crowd crowd(m), even(m), odd(m);
+  for (int i = 0; i < 12; ++i) {
+    Character c;
+    c.position = glm::vec3(0.9f * (i % 4) - 1.35f, 0.0f, -1.1f * (i / 4));  // overlapping on screen
+    c.yaw = 0.5f * i;
+    c.phase = 0.07f * i;
+    crowd.add(c);
+    (i % 2 ? odd : even).add(c);
+  }
+  SceneCamera cam;
+  cam.width = 320;
+  cam.height = 256;
+  cam.target = glm::vec3(0.0f, 1.0f, -1.0f);
+  cam.eye = glm::vec3(0.5f, 3.0f, 6.0f);
+  DrawOptions blend;
+  blend.edges = ImpostorEdges::kBlend;
+  auto target = OffscreenTarget::create(cam.width, cam.height, 4);
+  ASSERT_TRUE(target.ok());
+  // Two frames (the second from a turned camera, some snapshots kept) of `crowd` drawn by one renderer.
+  auto frames = [&](ImpostorConfig cfg, int fetch) {
+    cfg.quad_fetch = fetch;
+    FramePlanner planner(m, cfg);
+    auto renderer = Renderer::create(m, cfg);
+    EXPECT_TRUE(renderer.ok()) << renderer.error().message();
+    std::vector<std::uint8_t> px;
+    if (!renderer.ok()) return px;
+    EXPECT_EQ((*renderer)->pulls_quads(), fetch == 2);
+    SceneCamera c = cam;
+    for (int f = 0; f < 2; ++f) {
+      c.eye.x += 0.4f * f;
+      (*target)->bind(true);
+      (*renderer)->draw(planner.plan(crowd, c, 0.3f + 0.1f * f, RenderMode::kImpostor), blend);
+      const std::vector<std::uint8_t> frame = (*target)->read_rgba();
+      px.insert(px.end(), frame.begin(), frame.end());
+    }
+    return px;
+  };
+  // The same two frames of `even` and `odd` through draw_many, with an atlas each or one shared.
+  auto many_frames = [&](ImpostorConfig cfg, int fetch, bool shared) {
+    cfg.quad_fetch = fetch;
+    cfg.max_pages = 4;
+    const ImpostorConfig c0 = shared ? shared_atlas_config(cfg, 0, 2) : cfg, c1 = shared ? shared_atlas_config(cfg, 1, 2) : cfg;
+    FramePlanner p0(m, c0), p1(m, c1);
+    auto r0 = Renderer::create(m, c0);
+    EXPECT_TRUE(r0.ok());
+    std::vector<std::uint8_t> px;
+    if (!r0.ok()) return px;
+    auto r1 = Renderer::create(m, c1, shared ? r0->get() : nullptr);
+    EXPECT_TRUE(r1.ok());
+    if (!r1.ok()) return px;
+    SceneCamera c = cam;
+    for (int f = 0; f < 2; ++f) {
+      c.eye.x += 0.4f * f;
+      (*target)->bind(true);
+      const FramePlan* ps[2] = {&p0.plan(even, c, 0.3f + 0.1f * f, RenderMode::kImpostor),
+                                &p1.plan(odd, c, 0.3f + 0.1f * f, RenderMode::kImpostor)};
+      Renderer* rs[2] = {r0->get(), r1->get()};
+      Renderer::draw_many(rs, ps, blend);
+      const std::vector<std::uint8_t> frame = (*target)->read_rgba();
+      px.insert(px.end(), frame.begin(), frame.end());
+    }
+    return px;
+  };
+  auto compare = [](const char* what, const std::vector<std::uint8_t>& instanced, const std::vector<std::uint8_t>& pulled) {
+    ASSERT_EQ(instanced.size(), pulled.size()) << what;
+    int covered = 0, differ = 0;
+    for (std::size_t i = 0; i < pulled.size(); ++i) differ += instanced[i] != pulled[i];
+    for (std::size_t i = 3; i < pulled.size(); i += 4) covered += pulled[i] > 0;
+    std::printf("%s: %d covered pixels in two frames, %d bytes differ between instanced and pulled quads\n", what, covered,
+                differ);
+    EXPECT_GT(covered, 4000) << what;
+    EXPECT_EQ(differ, 0) << what;
+  };
+  ImpostorConfig whole;
+  whole.cache.posture_test = false;
+  whole.cache.view_threshold_deg = 5.0f;
+  compare("whole impostors", frames(whole, 1), frames(whole, 2));
+  ImpostorConfig cards = whole;
+  cards.part_cards = true;
+  cards.parallax_cards = true;
+  cards.parallax_depth_pass = true;
+  compare("depth-corrected part cards", frames(cards, 1), frames(cards, 2));
+  compare("two models, an atlas each", many_frames(whole, 1, false), many_frames(whole, 2, false));
+  compare("two models, one atlas", many_frames(whole, 1, true), many_frames(whole, 2, true));
+}
+
 // An unlit material (KHR_materials_unlit) is drawn in its base colour, (0.4, 0.2, 0.8) -> (102, 51, 204),
 // in both paths, with baked and with relit snapshots; a relit one stays so after the light moves. The
 // same square lit has other colours (white lit: 182, see ImpostorEdges).

@@ -198,6 +198,18 @@ struct ImpostorConfig {
   // a frame: impostor frame 4.79-5.45 against 4.67-5.63 ms, three alternated runs), and 4x4 stays.
   // The rectangles are the same whatever the size (a minimum and maximum over the same texels).
   int coverage_group = 0;
+  // How the impostor quads reach the vertex shader (0: auto, pulled on a software rasterizer and
+  // instanced on a GPU; 1: instanced; 2: pulled). Instanced: an instance of four vertices per quad,
+  // its BillboardGpu as per-instance attributes. Pulled: one indexed draw of six indices per quad,
+  // the vertex shader fetching its BillboardGpu from a buffer texture by gl_VertexID / 4 (up to
+  // GL_MAX_TEXTURE_BUFFER_SIZE / 7 quads: Renderer::create refuses 2 where 4 million do not fit,
+  // and auto then instances). The same vertices and pictures either way
+  // (CrowdRender.PulledQuadsDrawWhatInstancedQuadsDraw). llvmpipe runs its vertex pipeline once per
+  // instance, which four vertices cannot amortise: flow test bed, 10,000 RiggedSimples, the impostor
+  // frame's submission 6.5-8.3 -> 3.6-4.4 ms and the speed-up 4.6-4.9x -> 5.3-5.9x; 10,000 of the
+  // default crowd 59.6-60.3x -> 65.2-69.0x (three alternated runs each, fifty-third session); the
+  // paper's 20 humans the same. A GPU runs instances of four vertices well; not measured there.
+  int quad_fetch = 0;
   // Samples per texel of the snapshots (1 or 4). 4: drawn multisampled into a scratch page and
   // resolved into the atlas, so alpha holds each texel's coverage as the geometry's multisampled
   // pixels do; the impostor shader then takes one tap per pixel. 1: single-sampled, the impostor

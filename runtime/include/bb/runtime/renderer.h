@@ -176,6 +176,9 @@ class Renderer {
   // Invocations per side of the coverage pass's work groups (ImpostorConfig::coverage_group as
   // resolved for this GL: 4, 8 or 16).
   int coverage_group() const;
+  // Whether the impostor quads are pulled by the vertex shader (ImpostorConfig::quad_fetch as
+  // resolved for this GL) rather than drawn as instances.
+  bool pulls_quads() const;
   // Window texels under the impostor quads of `plan` as drawn: the planner's quads
   // (FrameStats::quad_texels), narrowed to the coverage rectangles where they are fitted. Reads
   // the rectangles back from the GPU (waits for it): for reports, outside timed frames.
