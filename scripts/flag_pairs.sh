@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Every pair of a list of `bodybuilder flow` settings (and of `render` settings on the shared models)
 # on a tiny scene: each run must end with status 0 or a clear error (1, 2, or CLI11's 100-120), never
-# by a signal or past its time. Not part of the test suite (about 2,800 runs, 20-40 minutes on a
+# by a signal or past its time. Not part of the test suite (about 2,900 runs, 20-40 minutes on a
 # 2-core machine); the fifty-second session's run found `flow --mode impostor --scaling` aborting.
 #   bash scripts/flag_pairs.sh [flow|render|both]   (build first: bash scripts/build.sh)
 set -uo pipefail
