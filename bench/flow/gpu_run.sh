@@ -582,6 +582,20 @@ set_s52e() {
   done
   set_s52
 }
+# Fifty-third session (no GPU lent then): quads pulled by the vertex shader (--quad-fetch pulled, the
+# default on llvmpipe) against instanced strips (a GPU's default), alternated in short runs (the
+# geometry pass's time drifts up in long ones): 10,000 humans of the four bodies and of RiggedSimple,
+# 1,000 at 8 degrees, and part cards at 8 degrees.
+set_s53() {
+  for i in 1 2 3; do
+    for q in instanced pulled; do
+      flow q53_${q}_10k_$i $C4 --frames 2 --scaling --scaling-humans 10000 --scaling-frames 8 --quad-fetch $q
+      flow q53_${q}_rs10k_$i --model $M/RiggedSimple.gltf --frames 2 --scaling --scaling-humans 10000 --scaling-frames 8 --quad-fetch $q
+      flow q53_${q}_h1000_v8_$i $C4 --frames 30 --humans 1000 --posture off --view 8 --quad-fetch $q
+      flow q53_${q}_parts_v8_$i $C4 --frames 30 --impostor-parts --posture off --view 8 --quad-fetch $q
+    done
+  done
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"
