@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -64,6 +65,40 @@ TEST(ClipTime, LoopsAndClamps) {
   EXPECT_EQ(clip_time(INFINITY, 2.0f, true), 0.0f);
   EXPECT_EQ(clip_time(-INFINITY, 2.0f, false), 0.0f);
   EXPECT_FLOAT_EQ(clip_time(3.0f, 0.0f, true), 0.0f);
+}
+
+// A looped clip time is fmod's remainder to the bit (taken in doubles, not by glibc's fmodf), over
+// times from -1e6 to 1e6 s and durations from 1/30 s to 100 s, as the old fmodf-based code gave it:
+// the remainder, plus a period where negative, 0 where that rounds up to the duration.
+TEST(ClipTime, LoopedIsFmodsRemainderToTheBit) {
+  auto reference = [](float time, float duration) {
+    float t = std::fmod(time, duration);
+    if (t < 0.0f) t += duration;
+    if (t >= duration) t = 0.0f;
+    return t;
+  };
+  std::uint32_t state = 12345u;
+  auto next = [&state] {  // xorshift32: a uniform float in [0, 1)
+    state ^= state << 13;
+    state ^= state >> 17;
+    state ^= state << 5;
+    return static_cast<float>(state >> 8) / 16777216.0f;
+  };
+  int checked = 0;
+  for (int i = 0; i < 200000; ++i) {
+    const float duration = std::exp2(-5.0f + 11.6f * next());                 // 1/32 to ~100 s
+    const float time = (next() < 0.5f ? -1.0f : 1.0f) * std::exp2(-10.0f + 30.0f * next());  // to ~1e6 s
+    const float got = clip_time(time, duration, true), want = reference(time, duration);
+    if (got != want) ADD_FAILURE() << "time " << time << " duration " << duration << ": " << got << " against " << want;
+    ++checked;
+    if (::testing::Test::HasFailure()) break;
+  }
+  EXPECT_EQ(checked, 200000);
+  // Whole periods and their neighbours.
+  for (float d : {1.0f / 30.0f, 0.8f, 1.0f, 1.25f, 2.0f / 3.0f})
+    for (int k = -1000; k <= 1000; k += 7)
+      for (float t : {k * d, std::nextafter(k * d, -INFINITY), std::nextafter(k * d, INFINITY)})
+        EXPECT_EQ(clip_time(t, d, true), reference(t, d)) << t << " " << d;
 }
 
 TEST(SampleChannel, StepLinearCubic) {
