@@ -1668,7 +1668,8 @@ TEST(CrowdRender, PartCardsCloseTheirCuts) {
 
 // Impostor quads pulled by the vertex shader from a buffer texture (ImpostorConfig::quad_fetch 2,
 // the default on a software rasterizer) draw the pixels that instanced quads (1) draw, byte for byte:
-// whole impostors, depth-corrected part cards (with their depth pass: two draws of one range), and
+// whole impostors, depth-corrected part cards (with their depth pass: two draws of one range), relit
+// part cards (their frame from the carried axes), and
 // two models' quads through draw_many, both with an atlas each (a draw per model and layer, from an
 // offset into each model's quads) and with one shared atlas (one draw).
 TEST(CrowdRender, PulledQuadsDrawWhatInstancedQuadsDraw) {
@@ -1756,6 +1757,10 @@ TEST(CrowdRender, PulledQuadsDrawWhatInstancedQuadsDraw) {
   cards.parallax_cards = true;
   cards.parallax_depth_pass = true;
   compare("depth-corrected part cards", frames(cards, 1), frames(cards, 2));
+  ImpostorConfig relit = whole;
+  relit.part_cards = true;
+  relit.relight = true;
+  compare("relit part cards", frames(relit, 1), frames(relit, 2));
   compare("two models, an atlas each", many_frames(whole, 1, false), many_frames(whole, 2, false));
   compare("two models, one atlas", many_frames(whole, 1, true), many_frames(whole, 2, true));
 }
