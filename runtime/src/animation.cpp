@@ -34,8 +34,8 @@ float clip_time(float time, float duration, bool loop) {
     t = static_cast<float>(r);
   } else {
     t = std::fmod(time, duration);
+    if (t < 0.0f) t += duration;
   }
-  if (t < 0.0f) t += duration;
   if (t >= duration) t = 0.0f;  // rounding
   return t;
 }

@@ -907,7 +907,8 @@ struct Renderer::Impl {
   bool pull_quads = false;
   std::size_t max_pulled_quads = 0;     // GL_MAX_TEXTURE_BUFFER_SIZE / 7
   GLuint quad_texture = 0;              // GL_TEXTURE_BUFFER, RGBA32F, over `billboards`
-  GLuint quad_indices = 0;              // 0 1 2 2 1 3, then the same + 4 per quad
+  std::size_t quad_texture_bytes = 0;   // `billboards`' capacity when quad_texture was attached to it
+  GLuint quad_indices = 0;              // 0 1 2 2 1 3, then the same + 4 per quad (vao_billboard's)
   std::size_t quad_index_capacity = 0;  // quads the index buffer holds
   StreamBuffer instances, snapshots, billboards;
   std::vector<InstanceGpu> instance_scratch;
@@ -991,6 +992,7 @@ struct Renderer::Impl {
   void upload_impostors(const ImpostorPass& p, const FramePlan& plan, const BillboardGpu* quads, std::size_t n,
                         const glm::mat4& viewproj) {
     billboards.upload(quads, n * sizeof(BillboardGpu));
+    if (pull_quads) fit_pulled_quads(n);
     const BillboardProgram& bp = bb[static_cast<std::size_t>(p.mode)];
     glProgramUniformMatrix4fv(bp.prog, bp.viewproj, 1, GL_FALSE, glm::value_ptr(viewproj));
     glProgramUniform3fv(bp.prog, bp.eye, 1, glm::value_ptr(plan.camera.eye));
@@ -1020,11 +1022,7 @@ struct Renderer::Impl {
     if (relight) glBindTextureUnit(5, shared_atlas->atlas_normal);
     glBindVertexArray(vao_billboard);
     glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, shared_atlas->coverage);
-    if (pull_quads) {
-      if (quad_texture == 0) glCreateTextures(GL_TEXTURE_BUFFER, 1, &quad_texture);
-      glTextureBuffer(quad_texture, GL_RGBA32F, billboards.id);
-      glBindTextureUnit(7, quad_texture);
-    }
+    if (pull_quads) glBindTextureUnit(7, quad_texture);
   }
 
   // The pass's blending and sampling state, the same whichever renderer draws; returns whether
@@ -1071,30 +1069,35 @@ struct Renderer::Impl {
     glBindSampler(1, 0);
   }
 
-  // One draw of uploaded quads [first, first + count) as this renderer fetches them: an instanced
-  // strip of 4 vertices each, or 6 indices each with the quad pulled by the vertex shader (the index
-  // buffer goes to the bound vertex array: draw_many draws a renderer's quads with another's program).
+  // Pulled quads: the buffer texture over `billboards` (attached again where its store grew) and
+  // vao_billboard's index buffer, for `n` uploaded quads. Only when they grow, not every frame.
+  void fit_pulled_quads(std::size_t n) {
+    assert(n <= max_pulled_quads && "more quads than a buffer texture holds");
+    if (quad_texture == 0) glCreateTextures(GL_TEXTURE_BUFFER, 1, &quad_texture);
+    if (quad_texture_bytes != billboards.capacity) {
+      glTextureBuffer(quad_texture, GL_RGBA32F, billboards.id);
+      quad_texture_bytes = billboards.capacity;
+    }
+    if (n <= quad_index_capacity) return;
+    quad_index_capacity = std::max(n, 2 * quad_index_capacity);
+    std::vector<GLuint> idx(6 * quad_index_capacity);
+    for (std::size_t q = 0; q < quad_index_capacity; ++q) {
+      const GLuint v = static_cast<GLuint>(4 * q);
+      const GLuint t[6] = {v, v + 1, v + 2, v + 2, v + 1, v + 3};
+      std::copy(t, t + 6, idx.begin() + static_cast<std::ptrdiff_t>(6 * q));
+    }
+    glNamedBufferData(quad_indices, static_cast<GLsizeiptr>(idx.size() * 4), idx.data(), GL_STATIC_DRAW);
+  }
+
+  // One draw of uploaded quads [first, first + count) as this renderer fetches them (with the vertex
+  // array bind_impostors bound, whose quads they are: draw_many may draw them with another renderer's
+  // alike program): an instanced strip of 4 vertices each, or 6 indices each with the quad pulled by
+  // the vertex shader.
   void draw_quads(GLuint first, GLsizei count) {
     if (!pull_quads) {
       glDrawArraysInstancedBaseInstance(GL_TRIANGLE_STRIP, 0, 4, count, first);
       return;
     }
-    const std::size_t need = static_cast<std::size_t>(first) + static_cast<std::size_t>(count);
-    assert(need <= max_pulled_quads && "more quads than a buffer texture holds");
-    if (need > quad_index_capacity) {
-      quad_index_capacity = std::max(need, 2 * quad_index_capacity);
-      std::vector<GLuint> idx(6 * quad_index_capacity);
-      for (std::size_t q = 0; q < quad_index_capacity; ++q) {
-        const GLuint v = static_cast<GLuint>(4 * q);
-        const GLuint t[6] = {v, v + 1, v + 2, v + 2, v + 1, v + 3};
-        std::copy(t, t + 6, idx.begin() + static_cast<std::ptrdiff_t>(6 * q));
-      }
-      if (quad_indices == 0) glCreateBuffers(1, &quad_indices);
-      glNamedBufferData(quad_indices, static_cast<GLsizeiptr>(idx.size() * 4), idx.data(), GL_STATIC_DRAW);
-    }
-    GLint vao = 0;
-    glGetIntegerv(GL_VERTEX_ARRAY_BINDING, &vao);
-    glVertexArrayElementBuffer(static_cast<GLuint>(vao), quad_indices);
     glDrawElements(GL_TRIANGLES, 6 * count, GL_UNSIGNED_INT,
                    reinterpret_cast<const void*>(static_cast<std::uintptr_t>(first) * 6 * 4));
   }
@@ -1678,6 +1681,8 @@ Result<std::unique_ptr<Renderer>> Renderer::create(const Model& model, const Imp
   }
   glCreateVertexArrays(1, &d.vao_billboard);
   instance_attribs(d.vao_billboard, d.billboards.id, sizeof(BillboardGpu), 0, 7);
+  glCreateBuffers(1, &d.quad_indices);  // pulled quads' (fit_pulled_quads fills it)
+  glVertexArrayElementBuffer(d.vao_billboard, d.quad_indices);
 
   // The atlas: one RGBA8 layer per page, one depth buffer shared by all pages; this renderer's or
   // share_atlas's (whose pages this model's planner takes a part of: ImpostorConfig::first_page).
