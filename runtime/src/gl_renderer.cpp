@@ -724,13 +724,32 @@ Result<GLuint> program(const std::string& vs, const std::string& fs, const char*
 struct StreamBuffer {
   GLuint id = 0;
   std::size_t capacity = 0;
+  void reserve(std::size_t bytes) {
+    if (bytes <= capacity) return;
+    capacity = std::max(bytes, capacity * 2);
+    glNamedBufferData(id, static_cast<GLsizeiptr>(capacity), nullptr, GL_STREAM_DRAW);
+  }
   void upload(const void* data, std::size_t bytes) {
     if (bytes == 0) return;
-    if (bytes > capacity) {
-      capacity = std::max(bytes, capacity * 2);
-      glNamedBufferData(id, static_cast<GLsizeiptr>(capacity), nullptr, GL_STREAM_DRAW);
-    }
+    reserve(bytes);
     glNamedBufferSubData(id, 0, static_cast<GLsizeiptr>(bytes), data);
+  }
+  // fill(p) writes the first `bytes` at p, straight into the buffer (mapped, its old contents
+  // given up, so that a driver may hand it new storage rather than wait for draws that still read
+  // the old): one pass over the data where gathering into a scratch list and uploading that
+  // takes two and a copy. Where the mapping fails, through `scratch` and upload().
+  template <class Fill>
+  void write(std::size_t bytes, std::vector<std::uint8_t>& scratch, Fill&& fill) {
+    if (bytes == 0) return;
+    reserve(bytes);
+    void* p = glMapNamedBufferRange(id, 0, static_cast<GLsizeiptr>(bytes), GL_MAP_WRITE_BIT | GL_MAP_INVALIDATE_BUFFER_BIT);
+    if (p) {
+      fill(p);
+      if (glUnmapNamedBuffer(id) == GL_TRUE) return;  // else its store was lost while mapped: again
+    }
+    scratch.resize(bytes);
+    fill(scratch.data());
+    upload(scratch.data(), bytes);
   }
 };
 
@@ -923,11 +942,14 @@ struct Renderer::Impl {
   std::vector<std::uint32_t> blend_order;
   DepthOrder depth_order;
   std::vector<BillboardGpu> billboard_scratch;
+  std::vector<std::uint8_t> write_scratch;  // StreamBuffer::write's where a mapping fails
   // draw_many: every renderer's quads of the frame on screen, their order back to front and
   // layers (in the first renderer's), and per layer this renderer's range of its upload.
   std::vector<LayerQuad> many_quads;
   std::vector<float> many_depth;
-  std::vector<std::uint32_t> many_order, many_index, many_model;  // many_model: one atlas's draw
+  std::vector<std::uint32_t> many_order, many_index;
+  // One atlas's draw: each quad's model, and each model's first quad (n + 1: the total last).
+  std::vector<std::uint32_t> many_model, many_first;
   std::vector<int> many_layer;
   ImpostorLayers layering;
   std::vector<std::array<GLuint, 2>> layer_ranges;  // (first, count)
@@ -992,6 +1014,16 @@ struct Renderer::Impl {
   void upload_impostors(const ImpostorPass& p, const FramePlan& plan, const BillboardGpu* quads, std::size_t n,
                         const glm::mat4& viewproj) {
     billboards.upload(quads, n * sizeof(BillboardGpu));
+    impostor_uniforms(p, plan, n, viewproj);
+  }
+  // The same, the quads written by gather(BillboardGpu* out) into the buffer in drawing order.
+  template <class Gather>
+  void write_impostors(const ImpostorPass& p, const FramePlan& plan, std::size_t n, const glm::mat4& viewproj,
+                       Gather&& gather) {
+    billboards.write(n * sizeof(BillboardGpu), write_scratch, [&](void* out) { gather(static_cast<BillboardGpu*>(out)); });
+    impostor_uniforms(p, plan, n, viewproj);
+  }
+  void impostor_uniforms(const ImpostorPass& p, const FramePlan& plan, std::size_t n, const glm::mat4& viewproj) {
     if (pull_quads) fit_pulled_quads(n);
     const BillboardProgram& bp = bb[static_cast<std::size_t>(p.mode)];
     glProgramUniformMatrix4fv(bp.prog, bp.viewproj, 1, GL_FALSE, glm::value_ptr(viewproj));
@@ -1942,9 +1974,9 @@ void Renderer::draw(const FramePlan& plan, const DrawOptions& options) {
       // Blending: back to front (distance of Ta along the view direction), so that soft edges
       // fall on what lies behind them.
       d.order_back_to_front(plan);
-      d.billboard_scratch.resize(plan.billboards.size());
-      for (std::size_t k = 0; k < d.billboard_order.size(); ++k) d.billboard_scratch[k] = plan.billboards[d.billboard_order[k]];
-      d.upload_impostors(p, plan, d.billboard_scratch.data(), d.billboard_scratch.size(), viewproj);
+      d.write_impostors(p, plan, d.billboard_order.size(), viewproj, [&](BillboardGpu* out) {
+        for (std::size_t k = 0; k < d.billboard_order.size(); ++k) out[k] = plan.billboards[d.billboard_order[k]];
+      });
     } else {
       d.upload_impostors(p, plan, plan.billboards.data(), plan.billboards.size(), viewproj);
     }
@@ -2009,27 +2041,32 @@ void Renderer::draw_many(std::span<Renderer* const> renderers, std::span<const F
     one_atlas = one_atlas && d.shared_atlas == d0.shared_atlas;
   }
   if (alike && one_atlas) {
-    d0.many_depth.clear();
-    d0.many_index.clear();
-    d0.many_model.clear();
-    for (std::size_t k = 0; k < n; ++k)
-      for (std::size_t i = 0; i < plans[k]->billboards.size(); ++i) {
-        d0.many_depth.push_back(-glm::dot(glm::vec3(plans[k]->billboards[i].ta_half) - camera.eye, fwd));
-        d0.many_index.push_back(static_cast<std::uint32_t>(i));
-        d0.many_model.push_back(static_cast<std::uint32_t>(k));
-      }
-    d0.depth_order.sort(d0.many_depth, d0.many_order);
-    d0.billboard_scratch.resize(d0.many_order.size());
-    for (std::size_t j = 0; j < d0.many_order.size(); ++j) {
-      const std::uint32_t g = d0.many_order[j];
-      d0.billboard_scratch[j] = plans[d0.many_model[g]]->billboards[d0.many_index[g]];
+    // Each quad's key, in model then plan order; a quad's model (many_model) and its place in
+    // the plan (its place here less its model's first) name it after the sort.
+    d0.many_first.resize(n + 1);
+    d0.many_first[0] = 0;
+    for (std::size_t k = 0; k < n; ++k) d0.many_first[k + 1] = d0.many_first[k] + static_cast<std::uint32_t>(plans[k]->billboards.size());
+    d0.many_depth.resize(d0.many_first[n]);
+    d0.many_model.resize(d0.many_first[n]);
+    for (std::size_t k = 0; k < n; ++k) {
+      const std::vector<BillboardGpu>& quads = plans[k]->billboards;
+      float* depth = d0.many_depth.data() + d0.many_first[k];
+      for (std::size_t i = 0; i < quads.size(); ++i) depth[i] = -glm::dot(glm::vec3(quads[i].ta_half) - camera.eye, fwd);
+      std::fill_n(d0.many_model.data() + d0.many_first[k], quads.size(), static_cast<std::uint32_t>(k));
     }
+    d0.depth_order.sort(d0.many_depth, d0.many_order);
     Impl::begin_many_impostors(camera);
     const Impl::ImpostorPass p = Impl::impostor_pass(options.edges, plans[first]->stats.part_cards > 0);
-    d0.upload_impostors(p, *plans[first], d0.billboard_scratch.data(), d0.billboard_scratch.size(), viewproj);
+    const std::size_t count = d0.many_order.size();
+    d0.write_impostors(p, *plans[first], count, viewproj, [&](BillboardGpu* out) {
+      for (std::size_t j = 0; j < count; ++j) {
+        const std::uint32_t g = d0.many_order[j], k = d0.many_model[g];
+        out[j] = plans[k]->billboards[g - d0.many_first[k]];
+      }
+    });
     d0.bind_impostors(p);
     const bool single_sampled = Impl::begin_impostor_state(p.mode);
-    d0.draw_impostor_range(p, 0, static_cast<GLsizei>(d0.billboard_scratch.size()));
+    d0.draw_impostor_range(p, 0, static_cast<GLsizei>(count));
     Impl::end_impostor_state(single_sampled);
     Impl::end_draw();
     return;
