@@ -31,6 +31,16 @@ ldd "$B" | awk '$3 ~ /^\// {print $3}' | while read -r lib; do
     *) cp -L "$lib" .gpu/lib/ ;;
   esac
 done
+# PREV=REV: also bench_flow as commit REV built it, as .gpu/bin/bench_flow_prev, for the sets that
+# alternate the binary before a change with this one (a worktree and build under /tmp).
+if [ -n "${PREV:-}" ]; then
+  w=$(mktemp -d /tmp/bb_prev.XXXXXX)
+  git worktree add -q --detach "$w" "$PREV"
+  cmake -S "$w" -B "$w/build" -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+  cmake --build "$w/build" --target bench_flow >/dev/null
+  cp "$w/build/bin/bench_flow" .gpu/bin/bench_flow_prev
+  git worktree remove --force "$w"
+fi
 build/bin/bodybuilder build -o .gpu/models --variants 3 --no-errors >/dev/null
 for m in CesiumMan.glb Fox.glb RiggedSimple.gltf SimpleSkin.gltf; do
   if [ -f "$SHARED/gltf/$m" ]; then cp "$SHARED/gltf/$m" .gpu/models/; else echo "gpu_prepare: $SHARED/gltf/$m absent, skipped" >&2; fi

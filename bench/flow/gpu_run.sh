@@ -596,6 +596,18 @@ set_s53() {
     done
   done
 }
+# Fifty-fourth session (no GPU lent then): the quads written straight into the mapped buffer and
+# draw_many's keys written in place (CPU work before the quads' draw at 10,000 humans on the 2-core
+# machine: 0.77-0.88 -> 0.39-0.49 ms), the binary before (PREV=ead7d1b bash bench/flow/gpu_prepare.sh)
+# against this one, alternated in short runs: 10,000 and 1,000 humans of the four bodies.
+set_s54() {
+  for i in 1 2 3; do
+    flowp p54_prev_10k_$i $C4 --frames 2 --scaling --scaling-humans 10000 --scaling-frames 8
+    flow p54_now_10k_$i $C4 --frames 2 --scaling --scaling-humans 10000 --scaling-frames 8
+    flowp p54_prev_h1000_$i $C4 --frames 30 --humans 1000
+    flow p54_now_h1000_$i $C4 --frames 30 --humans 1000
+  done
+}
 for set in ${@:-main}; do set_$set; done
 (cd "$R" && tar czf "$OUT/gpu_results.tar.gz" --exclude='frame_*.png' . ; ls main/*.png 2>/dev/null | head -2 | xargs -r -I{} cp {} "$OUT/")
 ls -la "$OUT"
