@@ -709,7 +709,9 @@ class FramePlanner {
   unsigned max_useful_threads(std::size_t work);  // at most planner_threads()
   // A frame in three steps: begin_frame (serial; returns the number of chunks to plan, 0: the
   // crowd is planned serially by end_frame), plan_chunk for each (any thread, any order),
-  // end_frame (joins the chunks, serves the budget, returns the plan).
+  // end_frame (joins the chunks, serves the budget, returns the plan). join_chunks, end_frame's
+  // first part, touches this planner's own lists only: plan_many runs several planners' on the
+  // threads before their end_frame (which then does not join again).
   std::size_t begin_frame(const Crowd& crowd, const SceneCamera& camera, float time, RenderMode mode);
   // Splits begin_frame's crowd into chunks (if not already, and not empty); returns their number.
   std::size_t chunk_frame();
@@ -717,6 +719,7 @@ class FramePlanner {
   // other than at its end, releasing the windows of characters no longer in it (begin_frame).
   void follow_ids(const Crowd& crowd);
   void plan_chunk(std::size_t c);
+  void join_chunks();
   const FramePlan& end_frame();
   void refresh_listed(const std::vector<PendingRefresh>& list, std::size_t take, bool ahead);
   // A window of class `size_class` for a starved character (end_frame): allocated, or, the atlas
@@ -736,6 +739,7 @@ class FramePlanner {
     FrameStats st;
     int budget_used = 0;
     std::size_t chunks = 0;
+    bool joined = false;   // join_chunks has run
     std::size_t work = 0;  // the crowd's size and the last frame's refreshes (kRefreshWork each)
     unsigned threads = 1;  // that planned the chunks
   };
