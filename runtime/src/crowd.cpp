@@ -151,21 +151,36 @@ WindowRects window_rects(const PlaneExtent& e, int window_size) {
           glm::vec4(glm::clamp((t0 - 4.0f) * texel, -1.0f, 1.0f), glm::clamp((t1 + 4.0f) * texel, -1.0f, 1.0f))};
 }
 
-// How far (texels, whole) the impostor shader's taps at a pixel reach into a window of
-// `texels_per_pixel`: half a texel for the bilinear filter, then half a pixel and the taps'
-// 0.375-pixel offset. A quad fitted to a snapshot's covered texels is widened by it.
-float taps_reach(float texels_per_pixel) { return std::ceil(0.5f + 0.875f * texels_per_pixel); }
+// How far (texels, whole) beyond a snapshot's covered texels the impostor shader's taps at a pixel
+// read them, in a window of `texels_per_pixel`: half a texel for the bilinear filter, and the
+// taps' largest offset from the pixel's centre, `tap_offset` pixels (tap_offset_of). A quad fitted
+// to the covered texels is widened by it: a pixel is drawn where its centre lies in the quad (in a
+// multisampled target, any of its samples: no fewer pixels for quads that face the screen), and
+// a pixel whose taps read covered texels has its centre within that reach of them. Until the
+// fifty-fourth session the reach also held half a pixel more, whatever the taps: one tap at one
+// texel per pixel reached 2 texels instead of 1 (RiggedSimple, 10,000 humans: 19 % more quad
+// texels, the same pictures; docs/results.md).
+float taps_reach(float texels_per_pixel, float tap_offset) { return std::ceil(0.5f + tap_offset * texels_per_pixel); }
+
+// The impostor shader's farthest tap from a pixel's centre (pixels) for `c`: none for one tap,
+// 0.28 for two (at +-(0.2, -0.2)), 0.40 for four (the 4x sample pattern, (0.375, 0.125) at most),
+// their distance and not their offset along an axis, as a part card turned by its bone since its
+// snapshot lies askew on the screen; per-sample taps lie on samples, which the rasterizer tests
+// themselves. Depth-corrected cards keep the older, wider 0.875 (their taps follow the parallax
+// steps).
+float tap_offset_of(const ImpostorConfig& c) {
+  if (c.parallax_cards) return 0.875f;
+  return c.impostor_taps <= 1 ? 0.0f : c.impostor_taps == 2 ? 0.2829f : 0.3953f;
+}
 
 // What the GPU needs to draw one snapshot of `instance` with `cam` (its window centred on cam.ta,
 // the subject a sphere of `radius` metres) into `win` of a `page`-pixel atlas page, clearing `rect`
 // of the window.
 // `quad` is the part of the window the impostor's quad shows; `slot` its fitted rectangle's index,
-// found when `fit`, widened by the reach of the impostor shader's taps at `texels_per_pixel`
-// (the window's texels per screen pixel at the subject's depth): half a texel for the bilinear filter,
-// then half a pixel and the taps' 0.375-pixel offset (tighter margins drop coverage: tests).
+// found when `fit`, widened by `reach` texels (taps_reach at the window's texels per screen pixel
+// at the subject's depth; tighter margins drop coverage: tests).
 SnapshotGpu snapshot_gpu(const InstanceGpu& instance, const SnapshotCamera& cam, float radius, const AtlasWindow& win,
-                         float page, const glm::vec4& rect, const glm::vec4& quad, int slot, bool fit,
-                         float texels_per_pixel) {
+                         float page, const glm::vec4& rect, const glm::vec4& quad, int slot, bool fit, float reach) {
   SnapshotGpu s;
   s.instance = instance;
   s.ho_half = glm::vec4(cam.ho, cam.half_size);
@@ -180,7 +195,7 @@ SnapshotGpu snapshot_gpu(const InstanceGpu& instance, const SnapshotCamera& cam,
   s.quad = quad;
   s.part.y = static_cast<float>(slot);
   s.part.z = fit ? 1.0f : 0.0f;
-  s.part.w = taps_reach(texels_per_pixel);
+  s.part.w = reach;
   return s;
 }
 
@@ -270,13 +285,12 @@ class SkinnedExtent {
       }
   }
   // Shrinks the quad and the cleared rect of a snapshot in a `window_size` window to the extent's
-  // texels (false where nothing was added): the quad widened by the taps' reach at
-  // `texels_per_pixel`, as the coverage pass widens its rectangle, and the cleared rect by that
-  // reach again and a texel, so that no tap of a pixel in the quad reads a texel an earlier
-  // snapshot left.
-  bool fit(int window_size, float texels_per_pixel, glm::vec4& quad, glm::vec4& cleared) const {
+  // texels (false where nothing was added): the quad widened by the taps' `reach` (texels,
+  // taps_reach), as the coverage pass widens its rectangle, and the cleared rect by that reach
+  // again and a texel, so that no tap of a pixel in the quad reads a texel an earlier snapshot left.
+  bool fit(int window_size, float reach, glm::vec4& quad, glm::vec4& cleared) const {
     if (!(extent.lo.x <= extent.hi.x)) return false;
-    const float texel = 2.0f / static_cast<float>(window_size), reach = taps_reach(texels_per_pixel);
+    const float texel = 2.0f / static_cast<float>(window_size);
     const glm::vec2 t0 = glm::floor(extent.lo / texel), t1 = glm::ceil(extent.hi / texel);
     auto widened = [&](float m) {
       return glm::vec4(glm::clamp((t0 - m) * texel, -1.0f, 1.0f), glm::clamp((t1 + m) * texel, -1.0f, 1.0f));
@@ -829,18 +843,18 @@ void FramePlanner::plan_character(std::size_t i, const Character& ch, const Fram
         }
         const int slod = config_.snapshot_lod_from_screen ? std::min(lod_for(pixels, camera.height), lods - 1)
                                                           : window_lod[win.size_class];
-        const float tpp = window_texels_per_pixel(win.size, sc.half_size, depth, ppm1);
+        const float reach = taps_reach(window_texels_per_pixel(win.size, sc.half_size, depth, ppm1), tap_offset_of(config_));
         if (config_.fit_quads_from_vertices && next.fitted) {
           // The quad and the cleared rect from the skinned vertices, widened by the taps' reach as
           // the coverage pass widens its rectangle (snapshot_gpu): no pass, the same pictures.
           const ModelFrame mf = model_frame(sc, ch);
           SkinnedExtent se(sc, mf, pal, np, bc.first_row + f0, bc.first_row + f1, blend);
           for (const Vertex& v : m.lods[slod].vertices) se.add(v);
-          next.fitted = !se.fit(win.size, tpp, next.rect, snap_rect);
+          next.fitted = !se.fit(win.size, reach, next.rect, snap_rect);
         }
         cs = next;
         out.snapshots.add(slod,
-            snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect, slot, next.fitted, tpp));
+            snapshot_gpu(inst, sc, radius, win, page, snap_rect, next.rect, slot, next.fitted, reach));
         ++st.snapshots;
         st.snapshot_triangles += m.lods[slod].triangle_count();
         ++*out.budget_used;
@@ -1479,7 +1493,7 @@ FramePlanner::PartCache FramePlanner::part_card(const PartJob& job, const Charac
     next.rect = rr.quad;
     snap_rect = rr.snapshot;
   }
-  const float tpp = window_texels_per_pixel(win.size, cam.half_size, job.depth, ppm1);
+  const float reach = taps_reach(window_texels_per_pixel(win.size, cam.half_size, job.depth, ppm1), tap_offset_of(config_));
   const PartIndices& pi = m.part_indices(job.slod);
   if (config_.fit_quads_from_vertices && next.fitted) {
     // As for whole impostors (plan_character): the part's triangles' vertices (each primitive's
@@ -1492,9 +1506,9 @@ FramePlanner::PartCache FramePlanner::part_card(const PartJob& job, const Charac
       const PartIndices::Range& range = pi.ranges[k * static_cast<std::size_t>(parts_) + static_cast<std::size_t>(p)];
       se.add_once(ml, std::span<const std::uint32_t>(pi.indices).subspan(range.first, range.count));
     }
-    next.fitted = !se.fit(win.size, tpp, next.rect, snap_rect);
+    next.fitted = !se.fit(win.size, reach, next.rect, snap_rect);
   }
-  s = snapshot_gpu(job.inst, cam, r, win, page, snap_rect, next.rect, slot, next.fitted, tpp);
+  s = snapshot_gpu(job.inst, cam, r, win, page, snap_rect, next.rect, slot, next.fitted, reach);
   s.part.x = static_cast<float>(p);
   const std::size_t prims = m.lods[static_cast<std::size_t>(job.slod)].primitives.size();
   tris = 0;

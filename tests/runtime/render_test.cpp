@@ -1297,9 +1297,10 @@ TEST(CrowdRender, QuadsFittedToTheCoverageHoldEveryCoveredTexel) {
   // One frame with every impostor refreshed; with fitted quads, also checks each rectangle.
   // Depth-corrected part cards: the rectangles come from the plane offsets' mask, in the pass that
   // also writes their wide texels.
-  auto frame = [&](float tpp, bool fit, bool depth_cards = false, int group = 4) {
+  auto frame = [&](float tpp, bool fit, bool depth_cards = false, int group = 4, int taps = 4) {
     ImpostorConfig cfg = refresh_always();
     cfg.texels_per_pixel = tpp;
+    cfg.impostor_taps = taps;
     cfg.fit_quads_to_coverage = fit;
     cfg.coverage_group = group;
     cfg.part_cards = cfg.parallax_cards = depth_cards;
@@ -1342,15 +1343,19 @@ TEST(CrowdRender, QuadsFittedToTheCoverageHoldEveryCoveredTexel) {
       fitted += (q.z - q.x) * (q.w - q.y);
       fitted_texels += (q.z - q.x) * (q.w - q.y) * 0.25 * size * size;
     }
-    std::printf("fitted quads, %g texels per pixel%s: %.0f %% of the planner's quads' area\n", tpp,
+    std::printf("fitted quads, %g texels per pixel, %d taps%s: %.0f %% of the planner's quads' area\n", tpp, taps,
                 depth_cards ? ", depth-corrected part cards" : "", 100.0 * fitted / planned);
     EXPECT_LT(fitted, 0.97 * planned);  // measured 91-92 % (CesiumMan ~40 px tall; 2-4-texel margins)
     // The report's figure: the same quads, in texels.
     EXPECT_NEAR((*renderer)->drawn_quad_texels(p), fitted_texels, 1e-4 * fitted_texels);
     return image;
   };
-  for (float tpp : {1.0f, 2.0f}) {  // the flow test bed's setting, the runtime's default
-    const auto boxes = frame(tpp, false), fitted = frame(tpp, true);
+  // The runtime's default (2 texels per pixel, 4 taps) and the flow test bed's (1 texel per pixel:
+  // 4 taps for part cards, 1 for whole impostors on the pixel grid; 2 on a GPU): the quads'
+  // margin is the reach of those taps (taps_reach), so each must keep every pixel that shows
+  // coverage.
+  for (auto [tpp, taps] : {std::pair{1.0f, 4}, std::pair{2.0f, 4}, std::pair{1.0f, 1}, std::pair{1.0f, 2}, std::pair{2.0f, 2}}) {
+    const auto boxes = frame(tpp, false, false, 4, taps), fitted = frame(tpp, true, false, 4, taps);
     ASSERT_EQ(boxes.size(), fitted.size());
     // Only pixels without coverage are left out: the same frame, but for the rounding of texture
     // coordinates interpolated over a smaller quad.
@@ -1362,7 +1367,7 @@ TEST(CrowdRender, QuadsFittedToTheCoverageHoldEveryCoveredTexel) {
     }
     std::printf("fitted quads: %d channel values differ, by at most %d\n", differ, worst);
     EXPECT_LE(worst, 1);
-    for (int group : {8, 16}) EXPECT_EQ(frame(tpp, true, false, group), fitted) << group << "x" << group << " work groups";
+    for (int group : {8, 16}) EXPECT_EQ(frame(tpp, true, false, group, taps), fitted) << group << "x" << group << " work groups";
   }
   const auto depth4 = frame(1.0f, true, true);
   EXPECT_EQ(frame(1.0f, true, true, 16), depth4) << "16x16 work groups, depth-corrected part cards";
