@@ -1156,33 +1156,31 @@ void FramePlanner::join_chunks() {
   if (fr.chunks == 0) return;
   FrameStats& st = fr.st;
   int& budget_used = fr.budget_used;
-  {
-    const std::size_t chunks = fr.chunks;
-    for (std::size_t c = 0; c < chunks; ++c) {
-      Chunk& k = chunks_[c];
-      const auto base = static_cast<std::uint32_t>(plan_.billboards.size());
-      for (std::size_t l = 0; l < plan_.geometry.size(); ++l)
-        plan_.geometry[l].insert(plan_.geometry[l].end(), k.geometry[l].begin(), k.geometry[l].end());
-      k.join_snapshots(plan_.snapshots);
-      plan_.billboards.insert(plan_.billboards.end(), k.billboards.begin(), k.billboards.end());
-      for (PendingRefresh& r : k.pending) {
-        r.billboard += base;
-        pending_.push_back(r);
-      }
-      for (PendingRefresh& r : k.ahead) {
-        r.billboard += base;
-        ahead_.push_back(r);
-      }
-      const auto job_base = static_cast<std::uint32_t>(part_jobs_.size());
-      for (PendingPart& r : k.pending_parts) {
-        r.billboard += base;
-        r.job += job_base;
-        pending_parts_.push_back(r);
-      }
-      part_jobs_.insert(part_jobs_.end(), k.part_jobs.begin(), k.part_jobs.end());
-      add_stats(st, k.st);
-      budget_used += k.budget_used;
+  const std::size_t chunks = fr.chunks;
+  for (std::size_t c = 0; c < chunks; ++c) {
+    Chunk& k = chunks_[c];
+    const auto base = static_cast<std::uint32_t>(plan_.billboards.size());
+    for (std::size_t l = 0; l < plan_.geometry.size(); ++l)
+      plan_.geometry[l].insert(plan_.geometry[l].end(), k.geometry[l].begin(), k.geometry[l].end());
+    k.join_snapshots(plan_.snapshots);
+    plan_.billboards.insert(plan_.billboards.end(), k.billboards.begin(), k.billboards.end());
+    for (PendingRefresh& r : k.pending) {
+      r.billboard += base;
+      pending_.push_back(r);
     }
+    for (PendingRefresh& r : k.ahead) {
+      r.billboard += base;
+      ahead_.push_back(r);
+    }
+    const auto job_base = static_cast<std::uint32_t>(part_jobs_.size());
+    for (PendingPart& r : k.pending_parts) {
+      r.billboard += base;
+      r.job += job_base;
+      pending_parts_.push_back(r);
+    }
+    part_jobs_.insert(part_jobs_.end(), k.part_jobs.begin(), k.part_jobs.end());
+    add_stats(st, k.st);
+    budget_used += k.budget_used;
   }
 }
 
