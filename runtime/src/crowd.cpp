@@ -170,7 +170,7 @@ float taps_reach(float texels_per_pixel, float tap_offset) { return std::ceil(0.
 // steps).
 float tap_offset_of(const ImpostorConfig& c) {
   if (c.parallax_cards) return 0.875f;
-  return c.impostor_taps <= 1 ? 0.0f : c.impostor_taps == 2 ? 0.2829f : 0.3953f;
+  return c.impostor_taps <= 1 ? 0.0f : c.impostor_taps == 2 ? std::hypot(0.2f, 0.2f) : std::hypot(0.375f, 0.125f);
 }
 
 // What the GPU needs to draw one snapshot of `instance` with `cam` (its window centred on cam.ta,
@@ -1132,20 +1132,14 @@ void FramePlanner::plan_many(std::span<FramePlanner* const> planners, std::span<
       for (std::size_t g = 0; g < total; ++g) run_chunk(g);
     }
   }
-  // Each planner's chunks joined on the threads (they touch their own planner's lists), then the
-  // serial rest, planner by planner (the atlas may be shared). At 10,000 humans of four models the
-  // joins took 0.17-0.18 ms a frame one after the other on the 2-core machine (docs/results.md,
-  // fifty-fourth session).
-  if (total > 0 && joint > 1) {
-    FramePlanner& lead = *planners[0];
-    const unsigned used = std::min<unsigned>(lead.max_useful_threads(work), static_cast<unsigned>(joint));
-    auto join = [&](std::size_t p) { planners[p]->join_chunks(); };
-    if (used > 1) {
-      lead.pool_->run(joint, join, used);
-    } else {
-      for (std::size_t p = 0; p < joint; ++p) join(p);
-    }
-  }
+  // Each planner's chunks joined on the threads (they touch their own planner's lists; where one
+  // thread would do, end_frame joins them), then the serial rest, planner by planner (the atlas
+  // may be shared). At 10,000 humans of four models the joins took 0.17-0.18 ms a frame one after
+  // the other on the 2-core machine (docs/results.md, fifty-fourth session).
+  const unsigned join_threads =
+      total > 0 ? std::min<unsigned>(planners[0]->max_useful_threads(work), static_cast<unsigned>(joint)) : 1;
+  auto join = [&](std::size_t p) { planners[p]->join_chunks(); };
+  if (join_threads > 1) planners[0]->pool_->run(joint, join, join_threads);
   for (FramePlanner* p : planners) p->end_frame();
 }
 
